@@ -1,0 +1,169 @@
+#pragma once
+// The immutable Model: everything loaded from a scenario. Built once by io::LoadScenario, then
+// only read. What a step changes lives in State (state.h). Units: mm, s, kg internally; the
+// material fields below keep the scenario's units (Pa, kg/m^3) and physics converts them with
+// units.h, so a Model prints back exactly what the user wrote.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "arthrosim/core/types.h"
+#include "arthrosim/mesh/tet_mesh.h"
+
+namespace arthrosim {
+
+/// Isotropic linear-elastic material with Rayleigh damping.
+struct Material {
+  std::string name;
+  double young_modulus_pa = 0;     ///< E, Pa (> 0)
+  double poisson_ratio = 0;        ///< nu, in [0, 0.5)
+  double density_kg_m3 = 0;        ///< rho, kg/m^3 (> 0)
+  double rayleigh_mass = 0;        ///< alpha, 1/s: damping force = -alpha * M v
+  double rayleigh_stiffness = 0;   ///< beta, s: damping force = -beta * K v
+};
+
+/// Volumetric deformable body (muscle, tendon, biceps).
+struct SoftBodyModel {
+  std::string name;
+  std::string mesh_file;              ///< as written in the scenario (relative to it)
+  mesh::TetMesh rest_mesh;            ///< initial mesh, mm, positively oriented tets
+  Material material;
+  std::vector<std::int32_t> fixed_nodes;  ///< sorted, unique node indices held in place
+};
+
+/// Rigid bone surface (humerus, acromion). Fixed in space; burr and awl reshape it.
+struct BoneModel {
+  std::string name;
+  std::string mesh_file;
+  mesh::TriMesh surface;      ///< closed, outward oriented, mm
+  double hardness = 1.0;      ///< dimensionless removal-rate divisor for burr/awl (1 = cancellous)
+};
+
+/// Suture thread: a chain of nodes (mass-spring), No. 2 FiberWire by default.
+struct ThreadModel {
+  std::string name;
+  mesh::LineMesh initial;            ///< initial node positions and segments (a chain 0-1-...-n)
+  double diameter_mm = 0.55;         ///< USP 2
+  double density_kg_m3 = 1300;       ///< clinical.md section 4
+  double stretch_stiffness_n = 5000; ///< axial stiffness EA, N (clinical.md: EA ~ 5 kN)
+  double bend_stiffness_n_mm2 = 0;   ///< EI, N*mm^2 (0 disables bending)
+  double damping_per_s = 0;          ///< mass-proportional damping, 1/s
+  double max_speed_mm_s = 500;       ///< anti-jitter node speed cap (paper section II)
+  bool self_collision = true;
+  std::vector<std::int32_t> fixed_nodes;  ///< e.g. node 0 held by an anchor in bone
+};
+
+/// The instruments of the paper's Table 1, plus the hook.
+enum class InstrumentKind : std::uint8_t {
+  kScissors, kCutter, kBurr, kShaver, kElectrocautery, kAwl,
+  kRetriever, kGrasper, kScorpionNeedle, kKnotPusher, kHook,
+};
+inline constexpr int kInstrumentKindCount = 11;
+
+/// One instrument available in the scenario. Geometry in the tool frame: the shaft runs along
+/// -z from the tip (origin) back to the handle; jaws open in the x-z plane.
+struct InstrumentModel {
+  std::string name;            ///< unique, used in trajectories and HDF5 (/tools/<name>)
+  InstrumentKind kind{};
+  std::string portal;          ///< name of the portal it enters through
+  double shaft_diameter_mm = 4.5;
+  double shaft_length_mm = 150;
+  double tip_length_mm = 8;    ///< working part: blade/jaw length, burr/awl tip length
+  double tip_radius_mm = 2;    ///< burr sphere radius, awl radius, shaver window half-width
+};
+
+/// Skin entry point for instruments and scope.
+struct Portal {
+  std::string name;
+  Vec3 position_mm = Vec3::Zero();
+};
+
+/// Arthroscope optics (clinical.md section 5).
+struct CameraModel {
+  std::string portal = "posterior";
+  double fov_deg = 105;           ///< image-circle field of view (in fluid)
+  double lens_angle_deg = 30;     ///< direction of view from the shaft axis
+  double diameter_mm = 4.0;
+  double near_mm = 1.0;
+  double far_mm = 100.0;
+  Pose initial_pose;              ///< pose of the scope tip; view axis along -z before the 30 deg tilt
+};
+
+/// A named point for plans, scripts and scoring (e.g. footprint centre, anchor site).
+struct Landmark {
+  std::string name;
+  std::string body;               ///< body it lies on ("" = world)
+  Vec3 position_mm = Vec3::Zero();
+};
+
+/// A named region of a body: the nodes (soft/thread) or surface vertices (bone) inside a shape.
+struct Region {
+  std::string name;
+  std::string body;
+  std::vector<std::int32_t> nodes;  ///< sorted node indices of that body inside the region
+  Vec3 box_min_mm = Vec3::Zero();   ///< the shape as written: an axis-aligned box...
+  Vec3 box_max_mm = Vec3::Zero();
+};
+
+/// Two soft bodies that share coincident nodes (muscle-tendon junction): physics merges them.
+struct Join {
+  std::string body_a, body_b;
+  double tolerance_mm = 1e-6;
+};
+
+enum class Integrator : std::uint8_t { kImplicitEuler, kArkode };
+
+/// Numerical options (SOFA defaults in docs; see sofa-defaults.md section 1.2).
+struct SolverOptions {
+  Integrator integrator = Integrator::kImplicitEuler;
+  int cg_max_iterations = 100;
+  double cg_tolerance = 1e-8;        ///< relative residual |r|/|b|
+};
+
+/// Run options.
+struct Options {
+  double dt_s = 0.02;
+  double duration_s = 1.0;
+  Vec3 gravity_mm_s2{0.0, 0.0, -9810.0};
+  std::uint64_t seed = 1;
+  std::string output_file = "run.h5";
+  int output_every_steps = 1;        ///< write a frame every N steps
+  double flush_interval_s = 1.0;     ///< HDF5 flush at least this often in simulated time
+};
+
+/// Everything a scenario defines. Immutable after loading.
+struct Model {
+  std::string name;
+  std::string scenario_path;       ///< file it came from
+  std::string scenario_text;       ///< exact YAML text (stored in HDF5 /meta/scenario_yaml)
+  std::string scenario_sha256;     ///< hex digest of scenario_text
+  Options options;
+  SolverOptions solver;
+  std::vector<Material> materials;
+  std::vector<SoftBodyModel> soft_bodies;
+  std::vector<BoneModel> bones;
+  std::vector<ThreadModel> threads;
+  std::vector<Join> joins;
+  std::vector<Portal> portals;
+  std::vector<InstrumentModel> instruments;
+  CameraModel camera;
+  std::vector<Landmark> landmarks;
+  std::vector<Region> regions;
+
+  /// Index of the soft body / bone / thread / instrument / landmark named `name`, or -1.
+  int FindSoftBody(const std::string& name) const;
+  int FindBone(const std::string& name) const;
+  int FindThread(const std::string& name) const;
+  int FindInstrument(const std::string& name) const;
+  int FindLandmark(const std::string& name) const;
+  int FindRegion(const std::string& name) const;
+  int FindPortal(const std::string& name) const;
+};
+
+/// Lower-case scenario name of an instrument kind ("scorpion_needle"); inverse below.
+const char* InstrumentKindName(InstrumentKind kind);
+/// Parses a kind name; std::nullopt if unknown.
+std::optional<InstrumentKind> ParseInstrumentKind(const std::string& name);
+
+}  // namespace arthrosim
