@@ -29,4 +29,23 @@ struct PointContact {
 
 using ContactSet = std::vector<PointContact>;
 
+/// A zero-or-positive-rest-length spring from a point of a deformable (weighted nodes, as in
+/// PointContact) to an anchor point held fixed for this step (a tool point, a world point, or
+/// the other side's point frozen at its position at the start of the step). The sim layer turns
+/// each State::SpringConstraint into one PointSpring per deformable side (staggered coupling).
+struct PointSpring {
+  PointContact::Target target = PointContact::Target::kSoftBody;
+  std::int32_t index = -1;
+  std::array<std::int32_t, 4> nodes{-1, -1, -1, -1};
+  std::array<double, 4> weights{0, 0, 0, 0};
+  Vec3 anchor_mm = Vec3::Zero();       ///< other end, fixed during the step
+  double stiffness_n_per_mm = 1.0;     ///< N/mm
+  double rest_length_mm = 0.0;
+  std::int64_t constraint_id = -1;     ///< State::SpringConstraint id it comes from (-1 = none)
+  // Filled by the solver after the step:
+  Vec3 force_n = Vec3::Zero();         ///< force the spring applied to the deformable point, N
+};
+
+using SpringSet = std::vector<PointSpring>;
+
 }  // namespace arthrosim::physics
