@@ -61,8 +61,9 @@ enum class InstrumentKind : std::uint8_t {
 };
 inline constexpr int kInstrumentKindCount = 11;
 
-/// One instrument available in the scenario. Geometry in the tool frame: the shaft runs along
-/// -z from the tip (origin) back to the handle; jaws open in the x-z plane.
+/// One instrument available in the scenario. Tool frame convention (shared by instruments and
+/// the arthroscope): origin at the tip, +z points forward (handle -> tip), so the shaft runs
+/// from the tip back along -z to the handle; jaws open in the x-z plane.
 struct InstrumentModel {
   std::string name;            ///< unique, used in trajectories and HDF5 (/tools/<name>)
   InstrumentKind kind{};
@@ -87,7 +88,8 @@ struct CameraModel {
   double diameter_mm = 4.0;
   double near_mm = 1.0;
   double far_mm = 100.0;
-  Pose initial_pose;              ///< pose of the scope tip; view axis along -z before the 30 deg tilt
+  Pose initial_pose;              ///< scope tip pose; shaft axis +z forward, +y image up at zero
+                                  ///< rolls; the view direction is +z tilted lens_angle toward +y
 };
 
 /// A named point for plans, scripts and scoring (e.g. footprint centre, anchor site).

@@ -60,7 +60,7 @@ struct SpringConstraint {
 /// Per instrument-slot state (a working hand / portal).
 struct ToolState {
   std::int32_t instrument = -1;      ///< index into Model::instruments, -1 = none inserted
-  Pose pose;                         ///< tip pose in world
+  Pose pose;                         ///< tip pose in world (+z forward; shaft along -z)
   double jaw = 0;                    ///< 0 open ... 1 closed
   std::uint8_t buttons = 0;          ///< bit 0 = button 1, bit 1 = button 2
   Vec3 force_n = Vec3::Zero();       ///< contact force on the instrument this step, N
@@ -68,7 +68,7 @@ struct ToolState {
 
 /// Arthroscope state.
 struct CameraState {
-  Pose pose;                         ///< scope tip pose (shaft along -z)
+  Pose pose;                         ///< scope tip pose (+z forward along the shaft; see CameraModel)
   double lens_roll_rad = 0;          ///< light-post rotation about the shaft (sweeps the 30 deg view)
   double head_roll_rad = 0;          ///< camera-head rotation (image up)
 };
