@@ -1,0 +1,53 @@
+#pragma once
+// One interface for every input: recorded sessions, synthetic scripts, live devices. The
+// deterministic core calls Frame once per step and Feedback after it; it never knows which
+// source it has. File and script sources are pure functions of the step time (so a run can be
+// restored mid-way); only the live server depends on what arrives over the network.
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "arthrosim/core/input_frame.h"
+#include "arthrosim/core/model.h"
+
+namespace arthrosim::input {
+
+/// The three input devices of a session: two instrument slots (hands) and the arthroscope.
+enum class Device : std::uint8_t { kSlot0 = 0, kSlot1 = 1, kScope = 2 };
+inline constexpr int kDeviceCount = 3;
+
+/// "slot0", "slot1", "scope".
+const char* DeviceName(Device device);
+/// Parses "slot0", "slot1", "scope" (alias "camera"); std::nullopt otherwise.
+std::optional<Device> ParseDevice(const std::string& name);
+
+class InputSource {
+ public:
+  virtual ~InputSource() = default;
+  /// Fills *out with the command for the step at simulated time t_s (s). t_s should be
+  /// step * dt; buttons pressed at any time in (t_s - dt, t_s] are reported as pressed.
+  virtual void Frame(std::int64_t step, double t_s, InputFrame* out) = 0;
+  /// Force on each slot after the step, N (sent to a haptic device; ignored by file sources).
+  virtual void Feedback(const FeedbackFrame& feedback) { (void)feedback; }
+  /// True once the source has nothing more to say at time t_s (s); the run may stop.
+  virtual bool Finished(double t_s) const = 0;
+};
+
+/// The frame of a source with nothing inserted: both slots withdrawn, scope at its initial pose.
+InputFrame IdleFrame(const Model& model);
+
+/// A source that never moves anything (IdleFrame forever; never finished).
+class IdleSource : public InputSource {
+ public:
+  explicit IdleSource(const Model& model) : frame_(IdleFrame(model)) {}
+  void Frame(std::int64_t, double, InputFrame* out) override { *out = frame_; }
+  bool Finished(double) const override { return false; }
+
+ private:
+  InputFrame frame_;
+};
+
+/// Bit-for-bit equality of two frames (every double compared by its bit pattern).
+bool BitwiseEqual(const InputFrame& a, const InputFrame& b);
+
+}  // namespace arthrosim::input

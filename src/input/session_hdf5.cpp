@@ -1,0 +1,278 @@
+// Session HDF5 reader and writer: one group per device (/slot0, /slot1, /scope) holding
+// parallel datasets, docs/trajectory-format.md.
+#include <fmt/format.h>
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "arthrosim/core/error.h"
+#include "arthrosim/input/session.h"
+
+namespace arthrosim::input {
+namespace {
+
+/// Closes an HDF5 id on scope exit.
+struct Id {
+  hid_t id = -1;
+  herr_t (*close)(hid_t) = nullptr;
+  Id(hid_t i, herr_t (*c)(hid_t)) : id(i), close(c) {}
+  Id(const Id&) = delete;
+  Id& operator=(const Id&) = delete;
+  ~Id() {
+    if (id >= 0 && close != nullptr) close(id);
+  }
+};
+
+/// Silences HDF5's automatic error printing for the lifetime of the guard.
+struct QuietHdf5 {
+  H5E_auto2_t func = nullptr;
+  void* data = nullptr;
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func, data); }
+};
+
+class Reader {
+ public:
+  Reader(const std::string& file, hid_t group, std::string group_name)
+      : file_(file), group_(group), name_(std::move(group_name)) {}
+
+  bool Has(const char* ds) const { return H5Lexists(group_, ds, H5P_DEFAULT) > 0; }
+
+  /// Reads a float64 dataset of shape [n] (cols = 0) or [n, cols]; sets n on first call.
+  std::vector<double> Doubles(const char* ds, int cols, hsize_t* n) const {
+    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.id < 0) Fail(ds, 0, "missing dataset");
+    Id space(H5Dget_space(d.id), H5Sclose);
+    hsize_t dims[2] = {0, 0};
+    const int rank = H5Sget_simple_extent_ndims(space.id);
+    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    const int want_rank = cols == 0 ? 1 : 2;
+    if (rank != want_rank || (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
+      Fail(ds, 0,
+           cols == 0 ? "expected a 1-D dataset" : fmt::format("expected shape [n, {}]", cols));
+    }
+    CheckRows(ds, dims[0], n);
+    std::vector<double> v(dims[0] * std::max(cols, 1));
+    if (!v.empty() &&
+        H5Dread(d.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
+      Fail(ds, 0, "cannot read as float64");
+    }
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!std::isfinite(v[i])) {
+        Fail(
+            ds, static_cast<int>(i / std::max(cols, 1)) + 1,
+            cols > 0 ? fmt::format("non-finite value in column {}", i % cols) : "non-finite value");
+      }
+    }
+    return v;
+  }
+
+  std::vector<std::string> Strings(const char* ds, hsize_t* n) const {
+    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.id < 0) Fail(ds, 0, "missing dataset");
+    Id ftype(H5Dget_type(d.id), H5Tclose);
+    if (H5Tget_class(ftype.id) != H5T_STRING) Fail(ds, 0, "expected a string dataset");
+    Id space(H5Dget_space(d.id), H5Sclose);
+    hsize_t dims[1] = {0};
+    if (H5Sget_simple_extent_ndims(space.id) != 1) Fail(ds, 0, "expected a 1-D dataset");
+    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    CheckRows(ds, dims[0], n);
+    std::vector<std::string> out(dims[0]);
+    if (dims[0] == 0) return out;
+    if (H5Tis_variable_str(ftype.id) > 0) {
+      Id mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(mtype.id, H5T_VARIABLE);
+      std::vector<char*> p(dims[0], nullptr);
+      if (H5Dread(d.id, mtype.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, p.data()) < 0) {
+        Fail(ds, 0, "cannot read strings");
+      }
+      for (hsize_t i = 0; i < dims[0]; ++i) out[i] = p[i] ? p[i] : "";
+      H5Dvlen_reclaim(mtype.id, space.id, H5P_DEFAULT, p.data());
+    } else {
+      const std::size_t len = H5Tget_size(ftype.id);
+      Id mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(mtype.id, len);
+      H5Tset_strpad(mtype.id, H5T_STR_NULLPAD);
+      std::vector<char> buf(len * dims[0], '\0');
+      if (H5Dread(d.id, mtype.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()) < 0) {
+        Fail(ds, 0, "cannot read strings");
+      }
+      for (hsize_t i = 0; i < dims[0]; ++i) {
+        const char* s = buf.data() + i * len;
+        out[i] = std::string(s, strnlen(s, len));
+      }
+    }
+    return out;
+  }
+
+  std::vector<std::uint8_t> Bytes(const char* ds, hsize_t* n) const {
+    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.id < 0) Fail(ds, 0, "missing dataset");
+    Id space(H5Dget_space(d.id), H5Sclose);
+    hsize_t dims[1] = {0};
+    if (H5Sget_simple_extent_ndims(space.id) != 1) Fail(ds, 0, "expected a 1-D dataset");
+    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    CheckRows(ds, dims[0], n);
+    std::vector<std::int64_t> v(dims[0]);
+    if (!v.empty() &&
+        H5Dread(d.id, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
+      Fail(ds, 0, "cannot read as integers");
+    }
+    std::vector<std::uint8_t> out(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (v[i] < 0 || v[i] > 3) Fail(ds, static_cast<int>(i) + 1, "buttons outside 0..3");
+      out[i] = static_cast<std::uint8_t>(v[i]);
+    }
+    return out;
+  }
+
+  [[noreturn]] void Fail(const char* ds, int row, const std::string& msg) const {
+    throw InputError(file_, row, "/" + name_ + "/" + ds,
+                     row > 0 ? fmt::format("row {}: {}", row, msg) : msg);
+  }
+
+ private:
+  void CheckRows(const char* ds, hsize_t rows, hsize_t* n) const {
+    if (*n == static_cast<hsize_t>(-1)) {
+      *n = rows;
+    } else if (rows != *n) {
+      Fail(ds, 0, fmt::format("has {} rows but /{}/t has {}", rows, name_, *n));
+    }
+  }
+  const std::string& file_;
+  hid_t group_;
+  std::string name_;
+};
+
+template <class T>
+void WriteDataset(const std::string& path, hid_t group, const char* name, hid_t mem_type,
+                  hid_t file_type, const std::vector<T>& data, hsize_t rows, hsize_t cols) {
+  hsize_t dims[2] = {rows, cols};
+  Id space(H5Screate_simple(cols == 0 ? 1 : 2, dims, nullptr), H5Sclose);
+  Id d(H5Dcreate2(group, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+       H5Dclose);
+  if (d.id < 0 ||
+      (rows > 0 && H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)) {
+    throw InputError(path, 0, name, "cannot write HDF5 dataset");
+  }
+}
+
+}  // namespace
+
+SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
+  QuietHdf5 quiet;
+  Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (file.id < 0) throw InputError(path, 0, "", "cannot open as an HDF5 file");
+  SessionTable table;
+  table.file = path;
+  std::vector<std::vector<SessionRow>> per_device(kDeviceCount);
+  bool any = false;
+  for (int d = 0; d < kDeviceCount; ++d) {
+    const Device dev = static_cast<Device>(d);
+    const char* name = DeviceName(dev);
+    if (H5Lexists(file.id, name, H5P_DEFAULT) <= 0) continue;
+    Id group(H5Gopen2(file.id, name, H5P_DEFAULT), H5Gclose);
+    if (group.id < 0) throw InputError(path, 0, std::string("/") + name, "expected a group");
+    any = true;
+    Reader rd(path, group.id, name);
+    hsize_t n = static_cast<hsize_t>(-1);
+    const std::vector<double> t = rd.Doubles("t", 0, &n);
+    const std::vector<double> p = rd.Doubles("position", 3, &n);
+    const std::vector<double> q = rd.Doubles("orientation", 4, &n);
+    const bool scope = dev == Device::kScope;
+    std::vector<double> jaw, lens, head;
+    std::vector<std::uint8_t> buttons;
+    std::vector<std::string> instr;
+    if (!scope && rd.Has("jaw")) jaw = rd.Doubles("jaw", 0, &n);
+    if (!scope && rd.Has("buttons")) buttons = rd.Bytes("buttons", &n);
+    if (!scope && rd.Has("instrument")) instr = rd.Strings("instrument", &n);
+    if (scope && rd.Has("lens_roll")) lens = rd.Doubles("lens_roll", 0, &n);
+    if (scope && rd.Has("head_roll")) head = rd.Doubles("head_roll", 0, &n);
+    for (hsize_t i = 0; i < n; ++i) {
+      SessionRow r;
+      r.line = static_cast<int>(i) + 1;
+      r.device = dev;
+      r.t_s = t[i] - options.time_offset_s;
+      r.position_mm = Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+      r.orientation = Quat(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
+      if (!jaw.empty()) {
+        r.jaw = jaw[i];
+        if (r.jaw < 0.0 || r.jaw > 1.0) rd.Fail("jaw", r.line, "jaw outside [0, 1]");
+      }
+      if (!buttons.empty()) r.buttons = buttons[i];
+      if (!instr.empty()) r.instrument = instr[i] == "none" ? "" : instr[i];
+      if (!lens.empty()) r.lens_roll_rad = lens[i];
+      if (!head.empty()) r.head_roll_rad = head[i];
+      per_device[d].push_back(std::move(r));
+    }
+  }
+  if (!any) throw InputError(path, 0, "", "no /slot0, /slot1 or /scope group: not a session file");
+  // File order: a merge by time (device order on ties) that keeps each device's rows as written.
+  std::vector<std::size_t> next(kDeviceCount, 0);
+  for (;;) {
+    int best = -1;
+    for (int d = 0; d < kDeviceCount; ++d) {
+      if (next[d] >= per_device[d].size()) continue;
+      if (best < 0 || per_device[d][next[d]].t_s < per_device[best][next[best]].t_s) best = d;
+    }
+    if (best < 0) break;
+    table.rows.push_back(std::move(per_device[best][next[best]++]));
+  }
+  if (table.rows.empty()) throw InputError(path, 0, "", "no samples");
+  ValidateSession(&table, options);
+  return table;
+}
+
+void WriteSessionHdf5(const std::string& path, const SessionTable& table) {
+  QuietHdf5 quiet;
+  Id file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (file.id < 0) throw InputError(path, 0, "", "cannot create HDF5 file");
+  for (int d = 0; d < kDeviceCount; ++d) {
+    const Device dev = static_cast<Device>(d);
+    std::vector<double> t, p, q, jaw, lens, head;
+    std::vector<std::uint8_t> buttons;
+    std::vector<std::string> instr;
+    std::size_t max_len = 1;
+    for (const SessionRow& r : table.rows) {
+      if (r.device != dev) continue;
+      t.push_back(r.t_s);
+      p.insert(p.end(), {r.position_mm.x(), r.position_mm.y(), r.position_mm.z()});
+      q.insert(q.end(),
+               {r.orientation.w(), r.orientation.x(), r.orientation.y(), r.orientation.z()});
+      jaw.push_back(r.jaw);
+      buttons.push_back(r.buttons);
+      instr.push_back(r.instrument.empty() ? "none" : r.instrument);
+      max_len = std::max(max_len, instr.back().size());
+      lens.push_back(r.lens_roll_rad);
+      head.push_back(r.head_roll_rad);
+    }
+    if (t.empty()) continue;
+    Id group(H5Gcreate2(file.id, DeviceName(dev), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    if (group.id < 0) throw InputError(path, 0, DeviceName(dev), "cannot create group");
+    const hsize_t n = t.size();
+    WriteDataset(path, group.id, "t", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, t, n, 0);
+    WriteDataset(path, group.id, "position", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, p, n, 3);
+    WriteDataset(path, group.id, "orientation", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, q, n, 4);
+    if (dev == Device::kScope) {
+      WriteDataset(path, group.id, "lens_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, lens, n, 0);
+      WriteDataset(path, group.id, "head_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, head, n, 0);
+    } else {
+      WriteDataset(path, group.id, "jaw", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, jaw, n, 0);
+      WriteDataset(path, group.id, "buttons", H5T_NATIVE_UINT8, H5T_STD_U8LE, buttons, n, 0);
+      std::vector<char> buf(n * max_len, '\0');
+      for (hsize_t i = 0; i < n; ++i)
+        std::memcpy(buf.data() + i * max_len, instr[i].data(), instr[i].size());
+      Id stype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(stype.id, max_len);
+      H5Tset_strpad(stype.id, H5T_STR_NULLPAD);
+      WriteDataset(path, group.id, "instrument", stype.id, stype.id, buf, n, 0);
+    }
+  }
+}
+
+}  // namespace arthrosim::input
