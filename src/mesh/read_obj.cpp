@@ -86,7 +86,11 @@ class ObjReader {
           if (i > 1) name += ' ';
           name += std::string(tok[i]);
         }
-        group_ = name;
+        if (name.empty()) {
+          group_.reset();  // a bare g/o returns to the default (no) group
+        } else {
+          group_ = name;
+        }
       } else if (!Ignored(k)) {
         Fail("statement", "unsupported OBJ statement '" + Cursor::Shorten(k) +
                               "' (expected v, vt, vn, f, l, g, o, s, usemtl, mtllib)");
