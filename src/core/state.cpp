@@ -63,6 +63,10 @@ void VisitState(const State& s, V&& v) {
   for (const Event& e : s.events) {
     v(e.step); v(e.time_s); v(e.kind); v(e.tool); v(e.body); v(e.detail); v(e.position_mm);
   }
+  v(s.tool_contacts.size());
+  for (const ToolContact& c : s.tool_contacts) {
+    v(c.tool_slot); v(static_cast<std::uint8_t>(c.body_kind)); v(c.body); v(c.position_mm);
+  }
 }
 
 // Feeds each field's shape and raw bytes to put(pointer, bytes).

@@ -84,6 +84,15 @@ struct Event {
   Vec3 position_mm = Vec3::Zero();
 };
 
+/// A (tool slot, body) pair in contact at the end of a step. The collision stage compares
+/// consecutive steps to emit contact_start / contact_end events, so it belongs to State.
+struct ToolContact {
+  std::int32_t tool_slot = -1;
+  ConstraintEnd::Kind body_kind = ConstraintEnd::Kind::kSoftBody;  ///< kSoftBody, kThread, kBone
+  std::int32_t body = -1;            ///< body index in the Model
+  Vec3 position_mm = Vec3::Zero();   ///< contact point (force-weighted mean), mm
+};
+
 inline constexpr int kToolSlots = 2;
 
 struct State {
@@ -98,6 +107,7 @@ struct State {
   std::int64_t next_constraint_id = 1;
   std::uint64_t rng_state = 0;              ///< splitmix64 state, seeded from Model::options.seed
   std::vector<Event> events;                ///< events of the last step only
+  std::vector<ToolContact> tool_contacts;   ///< touching (tool, body) pairs, sorted (collision)
 };
 
 struct Model;

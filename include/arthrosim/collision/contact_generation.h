@@ -1,0 +1,104 @@
+#pragma once
+// The collision stage of a step: from (Model, State, previous tool poses) to the ContactSet the
+// solvers take, the tool-bone reaction forces, and afterwards the tool forces and contact
+// events. See docs/contact-model.md for the model and its parameters.
+//
+// Call order in the sim step:
+//   1. prev_tools = state.tools                     (before the instrument kinematics stage)
+//   2. instrument kinematics moves state.tools to this step's pose and jaw
+//   3. Detect(model, state, prev_tools, params, &world, &out)      (tissue/thread at t_n)
+//   4. soft and thread solvers take out.contacts, fill force_n
+//   5. state.tools[s].force_n = ToolForces(out)[s]
+//   6. UpdateContactEvents(model, state, out, &state.tool_contacts, &state.events)
+// CollisionWorld is Workspace (trees, surfaces): rebuilding it from any State gives the same
+// contacts bit for bit, so it need not be saved. state.tool_contacts (the last step's touching
+// (tool, body) pairs) must be in State: the events of the next step depend on it.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "arthrosim/collision/collision_mesh.h"
+#include "arthrosim/collision/instrument_shape.h"
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+#include "arthrosim/physics/contact.h"
+
+namespace arthrosim::collision {
+
+/// Contact parameters (docs/contact-model.md explains each choice).
+struct CollisionParams {
+  double alarm_distance_mm = 1.0;    ///< gap below which a contact is handed to the solver
+  double contact_distance_mm = 0.1;  ///< gap the penalty keeps (skin); > 0 so touching is visible
+  double max_depth_mm = 1.5;         ///< tissue/thread points deeper than this behind a surface are
+                              ///< considered passed through (sutures, attachments): no contact
+  double sweep_fraction = 0.5;                  ///< tool sweep substep <= this * alarm_distance_mm
+  int max_substeps = 64;                        ///< cap on tool sweep substeps per step
+  double tool_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point
+  double tool_thread_stiffness_n_per_mm = 2.0;  ///< per contact point
+  double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides)
+  double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point
+  double tool_bone_stiffness_n_per_mm = 5.0;      ///< reaction on the (kinematic) tool, per part
+};
+
+/// Derived collision data (surfaces, FCL trees): Workspace, rebuilt from State at will.
+struct CollisionWorld {
+  struct SoftEntry {
+    std::size_t tet_count = 0;
+    std::vector<std::uint8_t> alive;  ///< tet_alive the surface was built for
+    Surface surface;
+    std::vector<Vec3> positions;  ///< local vertex positions this step
+    TriangleBvh bvh;
+    bool built = false;
+  };
+  struct BoneEntry {
+    mesh::TriMesh surface;  ///< copy the tree was built for
+    Surface indexed;        ///< local numbering
+    std::vector<Vec3> positions;
+    TriangleBvh bvh;
+    bool built = false;
+  };
+  std::vector<SoftEntry> soft;
+  std::vector<BoneEntry> bones;
+  std::int64_t rebuilds = 0;  ///< tree (re)builds so far (diagnostics)
+};
+
+/// Brings the world up to date with `state`: refits soft-body trees, rebuilds those whose
+/// topology (tets / tet_alive) changed and bones whose surface changed.
+void SyncWorld(const Model& model, const State& state, CollisionWorld* world);
+
+/// Which body a tool touches.
+struct BodyRef {
+  ConstraintEnd::Kind kind = ConstraintEnd::Kind::kSoftBody;  ///< kSoftBody, kThread or kBone
+  std::int32_t index = -1;
+};
+
+/// Result of the detection stage.
+struct CollisionOutput {
+  physics::ContactSet contacts;  ///< sorted by (tool, target, index, obstacle, nodes)
+  /// Obstacle kind per contact (parallel to contacts): kWorld for tools, else the obstacle body.
+  std::vector<ConstraintEnd::Kind> obstacle_kind;
+  std::array<Vec3, kToolSlots> bone_force_n{Vec3::Zero(), Vec3::Zero()};  ///< tool-bone, N
+  /// (tool slot, bone) pairs touching this step with their deepest point (tool-bone only; the
+  /// deformable pairs come from the solved contacts).
+  std::vector<ToolContact> bone_touches;
+  std::int32_t substeps[kToolSlots] = {0, 0};  ///< tool sweep substeps used
+};
+
+/// The collision stage: SyncWorld, then all contacts for this step. `state.tools` holds this
+/// step's tool poses, `prev_tools` last step's (same array if unknown); deformables are at t_n.
+void Detect(const Model& model, const State& state,
+            const std::array<ToolState, kToolSlots>& prev_tools, const CollisionParams& params,
+            CollisionWorld* world, CollisionOutput* out);
+
+/// Contact force on each tool slot, N: minus the sum of force_n * normal of its contacts (the
+/// solver filled force_n) plus the tool-bone reaction.
+std::array<Vec3, kToolSlots> ToolForces(const CollisionOutput& out);
+
+/// Compares this step's touching (tool, body) pairs (solved contacts with force_n > 0, and
+/// tool-bone touches) with *touching (last step's), appends contact_start / contact_end events
+/// (detail "region=<name>" if the contact point is in a Model region of that body) to *events,
+/// and replaces *touching with this step's pairs (sorted).
+void UpdateContactEvents(const Model& model, const State& state, const CollisionOutput& out,
+                         std::vector<ToolContact>* touching, std::vector<Event>* events);
+
+}  // namespace arthrosim::collision

@@ -1,0 +1,569 @@
+#include "arthrosim/collision/contact_generation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+namespace arthrosim::collision {
+namespace {
+
+using Kind = ConstraintEnd::Kind;
+using physics::PointContact;
+
+// Below this separation (mm) a closest-point direction is numerically meaningless; the contact
+// normal then comes from the surface instead.
+constexpr double kMinDirection = 1e-9;
+
+Vec3 SafeNormalized(const Vec3& v, const Vec3& fallback) {
+  const double n = v.norm();
+  return n > kMinDirection ? Vec3(v / n) : fallback;
+}
+
+void FillPositions(const Points& x, const std::vector<std::int32_t>& ids, std::vector<Vec3>* out) {
+  out->resize(ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) (*out)[i] = x.col(ids[i]);
+}
+
+Vec3 FaceNormal(const std::vector<Vec3>& p, const mesh::Tri& t) {
+  return SafeNormalized((p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]), Vec3::UnitZ());
+}
+
+Vec3 VertexNormal(const Surface& s, const std::vector<Vec3>& p, std::int32_t v) {
+  Vec3 n = Vec3::Zero();
+  for (std::int32_t k = s.vertex_tri_start[v]; k < s.vertex_tri_start[v + 1]; ++k) {
+    const mesh::Tri& t = s.local_tris[s.vertex_tris[k]];
+    n += (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]);  // area weighted
+  }
+  return SafeNormalized(n, Vec3::UnitZ());
+}
+
+Simplex LocalTriangle(const std::vector<Vec3>& p, const mesh::Tri& t) {
+  return TriangleSimplex(p[t[0]], p[t[1]], p[t[2]]);
+}
+
+Box SimplexBox(const Simplex& s) {
+  Box b;
+  for (int i = 0; i < s.n; ++i) b.Add(s.v[i]);
+  return b;
+}
+
+// Nearest surface feature to a query simplex among candidate triangles, with the pseudo-normal
+// of all equally near triangles (sum of their face normals) to tell inside from outside at
+// edges and vertices.
+struct Nearest {
+  bool found = false;
+  std::int32_t tri = -1;
+  ClosestPair pair;  // a = query, b = triangle
+  double dist = 0;
+  Vec3 pseudo = Vec3::UnitZ();
+  /// Signed distance of the query point from the surface (> 0 outside), mm.
+  double Signed() const { return (pair.pa - pair.pb).dot(pseudo) >= 0 ? dist : -dist; }
+};
+
+Nearest NearestOnSurface(const Simplex& q, const std::vector<std::int32_t>& cand,
+                         const std::vector<Vec3>& p, const std::vector<mesh::Tri>& tris) {
+  Nearest best;
+  thread_local std::vector<double> d2;
+  d2.assign(cand.size(), 0);
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    const ClosestPair c = Closest(q, LocalTriangle(p, tris[cand[i]]));
+    d2[i] = c.dist2;
+    if (!best.found || c.dist2 < best.pair.dist2) {
+      best.found = true;
+      best.tri = cand[i];
+      best.pair = c;
+    }
+  }
+  if (!best.found) return best;
+  best.dist = std::sqrt(best.pair.dist2);
+  Vec3 sum = Vec3::Zero();
+  const double tie = best.pair.dist2 * (1 + 1e-9) + 1e-18;
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    if (d2[i] <= tie) sum += FaceNormal(p, tris[cand[i]]);
+  }
+  best.pseudo = SafeNormalized(sum, FaceNormal(p, tris[best.tri]));
+  return best;
+}
+
+// The tool primitive swept from last step's pose (sub[0]) to this step's (sub.back()).
+struct Sweep {
+  const ToolPrimitive* prim = nullptr;
+  std::vector<Simplex> sub;
+  Box box;  // of all substeps, not inflated
+};
+
+// First substep at which the target comes within `reach` of the swept core.
+bool FirstTouch(const Sweep& sw, double reach, const Simplex& target, ClosestPair* at) {
+  const double reach2 = reach * reach;
+  for (const Simplex& core : sw.sub) {
+    const ClosestPair c = Closest(core, target);
+    if (c.dist2 < reach2) {
+      *at = c;
+      return true;
+    }
+  }
+  return false;
+}
+
+struct Builder {
+  const Model& model;
+  const State& state;
+  const CollisionParams& params;
+  std::vector<PointContact> contacts;
+  std::vector<Kind> kinds;
+
+  void Add(const PointContact& c, Kind obstacle) {
+    contacts.push_back(c);
+    kinds.push_back(obstacle);
+  }
+
+  bool SoftFixed(int body, std::int32_t node) const {
+    const auto& f = model.soft_bodies[body].fixed_nodes;
+    return std::binary_search(f.begin(), f.end(), node);
+  }
+  bool ThreadFixed(int thread, std::int32_t node) const {
+    const auto& f = model.threads[thread].fixed_nodes;
+    return std::find(f.begin(), f.end(), node) != f.end();
+  }
+  bool ThreadAlive(int thread, std::int32_t node) const {
+    const auto& a = state.threads[thread].node_alive;
+    return node < static_cast<std::int32_t>(a.size()) && a[node] != 0;
+  }
+};
+
+// Contact on a thread segment point with parameter u (0 = node a, 1 = node b).
+PointContact ThreadPoint(int thread, std::int32_t a, std::int32_t b, double u) {
+  PointContact c;
+  c.target = PointContact::Target::kThread;
+  c.index = thread;
+  if (u <= 0) {
+    c.nodes = {a, -1, -1, -1};
+    c.weights = {1, 0, 0, 0};
+  } else if (u >= 1) {
+    c.nodes = {b, -1, -1, -1};
+    c.weights = {1, 0, 0, 0};
+  } else {
+    c.nodes = {a, b, -1, -1};
+    c.weights = {1 - u, u, 0, 0};
+  }
+  return c;
+}
+
+// ---- tool against soft tissue -------------------------------------------------------------
+
+void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld::SoftEntry& e) {
+  const CollisionParams& P = B->params;
+  const double r = sw.prim->radius_mm;
+  const double reach = r + P.alarm_distance_mm;
+  const Box query = sw.box.Inflated(reach);
+  if (e.bvh.empty() || !query.Overlaps(e.bvh.Bounds())) return;
+  thread_local std::vector<std::int32_t> tris, verts;
+  tris.clear();
+  verts.clear();
+  e.bvh.Query(query, &tris);
+  for (std::int32_t t : tris) {
+    for (std::int32_t v : e.surface.local_tris[t]) verts.push_back(v);
+  }
+  std::sort(verts.begin(), verts.end());
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  const Simplex& now = sw.sub.back();
+  auto make = [&](const ClosestPair& touch, const ClosestPair& cur, const Vec3& fallback) {
+    PointContact c;
+    c.target = PointContact::Target::kSoftBody;
+    c.index = body;
+    // Direction fixed where the point first came within reach (outside the core, as the sweep
+    // substep is below the alarm distance), plane carried to this step's tool surface.
+    c.normal = SafeNormalized(touch.pb - touch.pa, fallback);
+    c.offset_mm = c.normal.dot(cur.pa) + r + P.contact_distance_mm;
+    c.stiffness_n_per_mm = P.tool_tissue_stiffness_n_per_mm;
+    c.tool_slot = slot;
+    c.obstacle_id = -1;
+    return c;
+  };
+  // 1. Surface vertices.
+  for (std::int32_t v : verts) {
+    const std::int32_t node = e.surface.vertices[v];
+    const Vec3& p = e.positions[v];
+    if ((p.array() < query.lo.array()).any() || (p.array() > query.hi.array()).any()) continue;
+    if (B->SoftFixed(body, node)) continue;
+    ClosestPair touch;
+    if (!FirstTouch(sw, reach, PointSimplex(p), &touch)) continue;
+    const ClosestPair cur = Closest(now, PointSimplex(p));
+    PointContact c = make(touch, cur, -VertexNormal(e.surface, e.positions, v));
+    c.nodes = {node, -1, -1, -1};
+    c.weights = {1, 0, 0, 0};
+    B->Add(c, Kind::kTool);
+  }
+  // 2. The one surface point nearest to the tool if it is not a vertex: a sharp or small part
+  // pressing between vertices (blade edge, awl point) is still held back.
+  bool have = false;
+  ClosestPair best_touch, best_cur;
+  std::int32_t best_tri = -1;
+  for (std::int32_t t : tris) {
+    const mesh::Tri& lt = e.surface.local_tris[t];
+    if (B->SoftFixed(body, e.surface.tris[t][0]) && B->SoftFixed(body, e.surface.tris[t][1]) &&
+        B->SoftFixed(body, e.surface.tris[t][2])) {
+      continue;
+    }
+    const Simplex tri = LocalTriangle(e.positions, lt);
+    ClosestPair touch;
+    if (!FirstTouch(sw, reach, tri, &touch)) continue;
+    const ClosestPair cur = Closest(now, tri);
+    if (!have || cur.dist2 < best_cur.dist2) {
+      have = true;
+      best_touch = touch;
+      best_cur = cur;
+      best_tri = t;
+    }
+  }
+  if (have && std::max({best_cur.wb[0], best_cur.wb[1], best_cur.wb[2]}) < 1 - 1e-9) {
+    PointContact c =
+        make(best_touch, best_cur, -FaceNormal(e.positions, e.surface.local_tris[best_tri]));
+    const mesh::Tri& g = e.surface.tris[best_tri];
+    c.nodes = {g[0], g[1], g[2], -1};
+    c.weights = {best_cur.wb[0], best_cur.wb[1], best_cur.wb[2], 0};
+    B->Add(c, Kind::kTool);
+  }
+}
+
+// ---- tool against thread ------------------------------------------------------------------
+
+void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
+  const CollisionParams& P = B->params;
+  const ThreadModel& tm = B->model.threads[thread];
+  const Points& x = B->state.threads[thread].x;
+  const double rt = 0.5 * tm.diameter_mm;
+  const double r = sw.prim->radius_mm;
+  const double reach = r + rt + P.alarm_distance_mm;
+  const Box query = sw.box.Inflated(reach);
+  std::int32_t last_single = -1;  // a node already given a contact by the previous segment
+  for (const mesh::Edge& edge : tm.initial.edges) {
+    const std::int32_t a = edge[0], b = edge[1];
+    if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
+    const Simplex seg = SegmentSimplex(x.col(a), x.col(b));
+    if (!SimplexBox(seg).Overlaps(query)) continue;
+    ClosestPair touch;
+    if (!FirstTouch(sw, reach, seg, &touch)) continue;
+    const ClosestPair cur = Closest(sw.sub.back(), seg);
+    PointContact c = ThreadPoint(thread, a, b, cur.wb[1]);
+    if (c.nodes[1] < 0) {
+      if (c.nodes[0] == last_single) continue;
+      last_single = c.nodes[0];
+    }
+    if (B->ThreadFixed(thread, c.nodes[0]) &&
+        (c.nodes[1] < 0 || B->ThreadFixed(thread, c.nodes[1]))) {
+      continue;
+    }
+    const Vec3 motion = sw.sub.back().At(touch.wa) - sw.sub.front().At(touch.wa);
+    c.normal = SafeNormalized(touch.pb - touch.pa, SafeNormalized(motion, Vec3::UnitZ()));
+    c.offset_mm = c.normal.dot(cur.pa) + r + rt + P.contact_distance_mm;
+    c.stiffness_n_per_mm = P.tool_thread_stiffness_n_per_mm;
+    c.tool_slot = slot;
+    B->Add(c, Kind::kTool);
+  }
+}
+
+// ---- tool against bone: reaction on the kinematic tool only --------------------------------
+
+void ToolBone(Builder* B, int slot, const Sweep& sw, CollisionWorld::BoneEntry& e,
+              CollisionOutput* out, double* deepest, Vec3* deepest_point) {
+  const double r = sw.prim->radius_mm;
+  const Simplex& now = sw.sub.back();
+  const Box query = SimplexBox(now).Inflated(r + B->params.contact_distance_mm);
+  if (e.bvh.empty() || !query.Overlaps(e.bvh.Bounds())) return;
+  thread_local std::vector<std::int32_t> tris;
+  tris.clear();
+  e.bvh.Query(query, &tris);
+  const Nearest n = NearestOnSurface(now, tris, e.positions, e.indexed.local_tris);
+  if (!n.found) return;
+  const double depth = r - n.Signed();
+  if (depth <= 0) return;
+  const Vec3 dir = n.Signed() > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+  out->bone_force_n[slot] += B->params.tool_bone_stiffness_n_per_mm * depth * dir;
+  if (depth > *deepest) {
+    *deepest = depth;
+    *deepest_point = n.pair.pb;
+  }
+}
+
+// ---- thread against a surface (tissue: both sides; bone: thread side) ---------------------
+
+struct SegmentHit {
+  bool pierced = false;
+  bool contact = false;
+  Nearest nearest;
+};
+
+void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, const Surface& s,
+                   const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness) {
+  const CollisionParams& P = B->params;
+  const ThreadModel& tm = B->model.threads[thread];
+  const Points& x = B->state.threads[thread].x;
+  const double rt = 0.5 * tm.diameter_mm;
+  if (bvh.empty()) return;
+  const Box bounds = bvh.Bounds();
+  const double reach = std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
+  const std::size_t ne = tm.initial.edges.size();
+  thread_local std::vector<SegmentHit> hits;
+  thread_local std::vector<std::int32_t> tris;
+  hits.assign(ne, SegmentHit{});
+  for (std::size_t i = 0; i < ne; ++i) {
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
+    if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
+    const Simplex seg = SegmentSimplex(x.col(a), x.col(b));
+    const Box q = SimplexBox(seg).Inflated(reach);
+    if (!q.Overlaps(bounds)) continue;
+    tris.clear();
+    bvh.Query(q, &tris);
+    if (tris.empty()) continue;
+    SegmentHit& h = hits[i];
+    h.nearest = NearestOnSurface(seg, tris, pos, s.local_tris);
+    if (!h.nearest.found) continue;
+    if (h.nearest.pair.dist2 == 0) {
+      h.pierced = true;  // a stitch passes through here
+      continue;
+    }
+    const double sd = h.nearest.Signed();
+    h.contact = sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
+  }
+  std::int32_t last_single = -1;
+  for (std::size_t i = 0; i < ne; ++i) {
+    const SegmentHit& h = hits[i];
+    // Next to a piercing the thread is entering the tissue on purpose.
+    if (!h.contact || (i > 0 && hits[i - 1].pierced) || (i + 1 < ne && hits[i + 1].pierced)) {
+      continue;
+    }
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
+    const Nearest& n = h.nearest;
+    const Vec3 normal =
+        n.Signed() > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+    PointContact c = ThreadPoint(thread, a, b, n.pair.wa[1]);
+    bool thread_side = true;
+    if (c.nodes[1] < 0) {
+      if (c.nodes[0] == last_single) thread_side = false;
+      last_single = c.nodes[0];
+    }
+    if (B->ThreadFixed(thread, c.nodes[0]) &&
+        (c.nodes[1] < 0 || B->ThreadFixed(thread, c.nodes[1]))) {
+      thread_side = false;
+    }
+    if (thread_side) {
+      c.normal = normal;
+      c.offset_mm = normal.dot(n.pair.pb) + rt + P.contact_distance_mm;
+      c.stiffness_n_per_mm = stiffness;
+      c.obstacle_id = obstacle_index;
+      B->Add(c, obstacle);
+    }
+    if (obstacle == Kind::kSoftBody) {
+      const mesh::Tri& g = s.tris[n.tri];
+      if (B->SoftFixed(obstacle_index, g[0]) && B->SoftFixed(obstacle_index, g[1]) &&
+          B->SoftFixed(obstacle_index, g[2])) {
+        continue;
+      }
+      PointContact t;
+      t.target = PointContact::Target::kSoftBody;
+      t.index = obstacle_index;
+      t.nodes = {g[0], g[1], g[2], -1};
+      t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
+      t.normal = -normal;
+      t.offset_mm = -normal.dot(n.pair.pa) + rt + P.contact_distance_mm;
+      t.stiffness_n_per_mm = stiffness;
+      t.obstacle_id = thread;
+      B->Add(t, Kind::kThread);
+    }
+  }
+}
+
+// ---- soft tissue against bone -----------------------------------------------------------------
+
+void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
+                CollisionWorld::BoneEntry& g) {
+  const CollisionParams& P = B->params;
+  if (s.bvh.empty() || g.bvh.empty()) return;
+  const double margin = std::max(P.alarm_distance_mm, P.max_depth_mm);
+  if (!s.bvh.Bounds().Inflated(margin).Overlaps(g.bvh.Bounds())) return;
+  thread_local std::vector<std::pair<std::int32_t, std::int32_t>> pairs, vt;
+  thread_local std::vector<std::int32_t> cand;
+  pairs.clear();
+  vt.clear();
+  s.bvh.QueryPairs(g.bvh, margin, &pairs);
+  for (const auto& [st, bt] : pairs) {
+    for (std::int32_t v : s.surface.local_tris[st]) vt.emplace_back(v, bt);
+  }
+  std::sort(vt.begin(), vt.end());
+  vt.erase(std::unique(vt.begin(), vt.end()), vt.end());
+  for (std::size_t i = 0; i < vt.size();) {
+    std::size_t j = i;
+    cand.clear();
+    while (j < vt.size() && vt[j].first == vt[i].first) cand.push_back(vt[j++].second);
+    const std::int32_t v = vt[i].first;
+    i = j;
+    const std::int32_t node = s.surface.vertices[v];
+    if (B->SoftFixed(body, node)) continue;
+    const Nearest n =
+        NearestOnSurface(PointSimplex(s.positions[v]), cand, g.positions, g.indexed.local_tris);
+    if (!n.found) continue;
+    const double sd = n.Signed();
+    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
+    PointContact c;
+    c.target = PointContact::Target::kSoftBody;
+    c.index = body;
+    c.nodes = {node, -1, -1, -1};
+    c.weights = {1, 0, 0, 0};
+    c.normal = sd > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+    c.offset_mm = c.normal.dot(n.pair.pb) + P.contact_distance_mm;
+    c.stiffness_n_per_mm = P.bone_stiffness_n_per_mm;
+    c.obstacle_id = bone;
+    B->Add(c, Kind::kBone);
+  }
+}
+
+std::vector<Sweep> MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
+                              const CollisionParams& params, std::vector<ToolPrimitive>* prims,
+                              std::int32_t* substeps) {
+  *prims = ToolPrimitivesWorld(model, cur);
+  std::vector<ToolPrimitive> before =
+      prev.instrument == cur.instrument ? ToolPrimitivesWorld(model, prev) : *prims;
+  double disp = 0;
+  for (std::size_t j = 0; j < prims->size(); ++j) {
+    for (int i = 0; i < (*prims)[j].core.n; ++i) {
+      disp = std::max(disp, ((*prims)[j].core.v[i] - before[j].core.v[i]).norm());
+    }
+  }
+  const double step = params.sweep_fraction * params.alarm_distance_mm;
+  const int k = std::clamp(static_cast<int>(std::ceil(disp / step)), 1, params.max_substeps);
+  *substeps = k;
+  std::vector<Sweep> sweeps;
+  for (std::size_t j = 0; j < prims->size(); ++j) {
+    if (!(*prims)[j].contacts) continue;
+    Sweep sw;
+    sw.prim = &(*prims)[j];
+    for (int s = 0; s <= k; ++s) {
+      Simplex core = (*prims)[j].core;
+      if (s < k) {
+        const double f = static_cast<double>(s) / k;
+        for (int i = 0; i < core.n; ++i) {
+          core.v[i] = before[j].core.v[i] + f * ((*prims)[j].core.v[i] - before[j].core.v[i]);
+        }
+      }
+      for (int i = 0; i < core.n; ++i) sw.box.Add(core.v[i]);
+      sw.sub.push_back(core);
+    }
+    sweeps.push_back(std::move(sw));
+  }
+  return sweeps;
+}
+
+}  // namespace
+
+void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
+  (void)model;
+  world->soft.resize(state.soft_bodies.size());
+  for (std::size_t b = 0; b < state.soft_bodies.size(); ++b) {
+    const SoftBodyState& sb = state.soft_bodies[b];
+    CollisionWorld::SoftEntry& e = world->soft[b];
+    if (!e.built || e.tet_count != sb.tets.size() || e.alive != sb.tet_alive) {
+      e.surface = MakeSurface(BoundaryTriangles(sb.tets, sb.tet_alive));
+      e.tet_count = sb.tets.size();
+      e.alive = sb.tet_alive;
+      FillPositions(sb.x, e.surface.vertices, &e.positions);
+      e.bvh.Build(e.positions, e.surface.local_tris);
+      e.built = true;
+      ++world->rebuilds;
+    } else {
+      FillPositions(sb.x, e.surface.vertices, &e.positions);
+      e.bvh.Refit(e.positions);
+    }
+  }
+  world->bones.resize(state.bones.size());
+  for (std::size_t g = 0; g < state.bones.size(); ++g) {
+    const mesh::TriMesh& m = state.bones[g].surface;
+    CollisionWorld::BoneEntry& e = world->bones[g];
+    const bool same = e.built && e.surface.nodes.cols() == m.nodes.cols() &&
+                      e.surface.tris == m.tris && e.surface.nodes == m.nodes;
+    if (same) continue;
+    e.surface = m;
+    e.indexed = MakeSurface(CanonicalTriangles(m.tris));
+    FillPositions(m.nodes, e.indexed.vertices, &e.positions);
+    e.bvh.Build(e.positions, e.indexed.local_tris);
+    e.built = true;
+    ++world->rebuilds;
+  }
+}
+
+void Detect(const Model& model, const State& state,
+            const std::array<ToolState, kToolSlots>& prev_tools, const CollisionParams& params,
+            CollisionWorld* world, CollisionOutput* out) {
+  SyncWorld(model, state, world);
+  Builder B{model, state, params, {}, {}};
+  B.contacts.reserve(out->contacts.capacity());
+  out->bone_force_n.fill(Vec3::Zero());
+  out->bone_touches.clear();
+  for (int slot = 0; slot < kToolSlots; ++slot) {
+    out->substeps[slot] = 0;
+    std::vector<ToolPrimitive> prims;
+    const std::vector<Sweep> sweeps = MakeSweeps(model, prev_tools[slot], state.tools[slot], params,
+                                                 &prims, &out->substeps[slot]);
+    for (std::size_t b = 0; b < world->soft.size(); ++b) {
+      for (const Sweep& sw : sweeps) ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);
+    }
+    for (std::size_t t = 0; t < state.threads.size(); ++t) {
+      for (const Sweep& sw : sweeps) ToolThread(&B, slot, sw, static_cast<int>(t));
+    }
+    for (std::size_t g = 0; g < world->bones.size(); ++g) {
+      double deepest = 0;
+      Vec3 point = Vec3::Zero();
+      for (const Sweep& sw : sweeps) {
+        ToolBone(&B, slot, sw, world->bones[g], out, &deepest, &point);
+      }
+      if (deepest > 0) {
+        out->bone_touches.push_back(ToolContact{slot, Kind::kBone, static_cast<int>(g), point});
+      }
+    }
+  }
+  for (std::size_t t = 0; t < state.threads.size(); ++t) {
+    for (std::size_t b = 0; b < world->soft.size(); ++b) {
+      const auto& e = world->soft[b];
+      ThreadSurface(&B, static_cast<int>(t), Kind::kSoftBody, static_cast<int>(b), e.surface,
+                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm);
+    }
+    for (std::size_t g = 0; g < world->bones.size(); ++g) {
+      const auto& e = world->bones[g];
+      ThreadSurface(&B, static_cast<int>(t), Kind::kBone, static_cast<int>(g), e.indexed,
+                    e.positions, e.bvh, params.bone_stiffness_n_per_mm);
+    }
+  }
+  for (std::size_t b = 0; b < world->soft.size(); ++b) {
+    for (std::size_t g = 0; g < world->bones.size(); ++g) {
+      TissueBone(&B, static_cast<int>(b), world->soft[b], static_cast<int>(g), world->bones[g]);
+    }
+  }
+  // Creation order never matters: sort by (tool, target, body, obstacle, feature) and, for
+  // completeness, by the remaining values.
+  std::vector<std::size_t> order(B.contacts.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto key = [&](std::size_t i) {
+    const PointContact& c = B.contacts[i];
+    return std::make_tuple(c.tool_slot, static_cast<int>(c.target), c.index,
+                           static_cast<int>(B.kinds[i]), c.obstacle_id, c.nodes, c.weights,
+                           c.offset_mm, c.normal.x(), c.normal.y(), c.normal.z());
+  };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  out->contacts.clear();
+  out->obstacle_kind.clear();
+  for (std::size_t i : order) {
+    out->contacts.push_back(B.contacts[i]);
+    out->obstacle_kind.push_back(B.kinds[i]);
+  }
+}
+
+std::array<Vec3, kToolSlots> ToolForces(const CollisionOutput& out) {
+  std::array<Vec3, kToolSlots> f = out.bone_force_n;
+  for (const PointContact& c : out.contacts) {
+    if (c.tool_slot >= 0 && c.tool_slot < kToolSlots) f[c.tool_slot] -= c.force_n * c.normal;
+  }
+  return f;
+}
+
+}  // namespace arthrosim::collision

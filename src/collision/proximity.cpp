@@ -1,0 +1,259 @@
+#include "arthrosim/collision/proximity.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace arthrosim::collision {
+namespace {
+
+// Squared length below which an edge or a triangle's doubled area counts as degenerate (mm^2,
+// mm^4 relative). Only exact or near-exact degeneracies reach it; 1e-12 mm is far below any
+// mesh feature.
+constexpr double kTinyLength2 = 1e-24;
+
+double Clamp01(double x) { return std::clamp(x, 0.0, 1.0); }
+
+ClosestPair Swapped(ClosestPair r) {
+  std::swap(r.wa, r.wb);
+  std::swap(r.pa, r.pb);
+  return r;
+}
+
+ClosestPair Finish(ClosestPair r, const Simplex& a, const Simplex& b) {
+  r.pa = a.At(r.wa);
+  r.pb = b.At(r.wb);
+  r.dist2 = (r.pa - r.pb).squaredNorm();
+  return r;
+}
+
+}  // namespace
+
+Vec3 Simplex::At(const std::array<double, 3>& w) const {
+  Vec3 p = w[0] * v[0];
+  if (n > 1) p += w[1] * v[1];
+  if (n > 2) p += w[2] * v[2];
+  return p;
+}
+
+Simplex PointSimplex(const Vec3& a) { return Simplex{1, {a, Vec3::Zero(), Vec3::Zero()}}; }
+Simplex SegmentSimplex(const Vec3& a, const Vec3& b) { return Simplex{2, {a, b, Vec3::Zero()}}; }
+Simplex TriangleSimplex(const Vec3& a, const Vec3& b, const Vec3& c) {
+  return Simplex{3, {a, b, c}};
+}
+
+ClosestPair PointSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 ab = b - a;
+  const double len2 = ab.dot(ab);
+  const double t = len2 <= kTinyLength2 ? 0.0 : Clamp01((p - a).dot(ab) / len2);
+  ClosestPair r;
+  r.wa = {1, 0, 0};
+  r.wb = {1.0 - t, t, 0};
+  return Finish(r, PointSimplex(p), SegmentSimplex(a, b));
+}
+
+ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Simplex pa = PointSimplex(p);
+  const Simplex tri = TriangleSimplex(a, b, c);
+  const Vec3 ab = b - a, ac = c - a;
+  const double scale2 = std::max({ab.squaredNorm(), ac.squaredNorm(), (c - b).squaredNorm()});
+  if (ab.cross(ac).squaredNorm() <= kTinyLength2 * std::max(scale2 * scale2, 1.0)) {
+    // Degenerate (needle or point): the closest point is on one of its edges.
+    ClosestPair best;
+    best.dist2 = -1;
+    const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+    for (const auto& e : edges) {
+      const ClosestPair s = PointSegment(p, tri.v[e[0]], tri.v[e[1]]);
+      if (best.dist2 < 0 || s.dist2 < best.dist2) {
+        best = s;
+        best.wb = {0, 0, 0};
+        best.wb[e[0]] = s.wb[0];
+        best.wb[e[1]] += s.wb[1];
+      }
+    }
+    return Finish(best, pa, tri);
+  }
+  // Voronoi regions of the vertices, edges and face; in a non-degenerate triangle the
+  // denominators below are the squared edge lengths and the doubled area, all > 0.
+  ClosestPair r;
+  const Vec3 ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  const double vc = d1 * d4 - d3 * d2;
+  const double vb = d5 * d2 - d1 * d6;
+  const double va = d3 * d6 - d5 * d4;
+  if (d1 <= 0 && d2 <= 0) {
+    r.wb = {1, 0, 0};
+  } else if (d3 >= 0 && d4 <= d3) {
+    r.wb = {0, 1, 0};
+  } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    r.wb = {1 - v, v, 0};
+  } else if (d6 >= 0 && d5 <= d6) {
+    r.wb = {0, 0, 1};
+  } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    r.wb = {1 - w, 0, w};
+  } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    r.wb = {0, 1 - w, w};
+  } else {
+    const double denom = va + vb + vc;
+    const double v = vb / denom, w = vc / denom;
+    r.wb = {1 - v - w, v, w};
+  }
+  r.wa = {1, 0, 0};
+  return Finish(r, pa, tri);
+}
+
+ClosestPair SegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
+  const Vec3 d1 = p1 - p0, d2 = q1 - q0, r0 = p0 - q0;
+  const double a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r0);
+  double s = 0, t = 0;
+  if (a <= kTinyLength2 && e <= kTinyLength2) {
+    s = t = 0;
+  } else if (a <= kTinyLength2) {
+    t = Clamp01(f / e);
+  } else {
+    const double c = d1.dot(r0);
+    if (e <= kTinyLength2) {
+      s = Clamp01(-c / a);
+    } else {
+      const double b = d1.dot(d2);
+      const double denom = a * e - b * b;
+      // Parallel (relative test): any s works, take the start and fix t, then s, below.
+      s = denom > 1e-12 * a * e ? Clamp01((b * f - c * e) / denom) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = Clamp01(-c / a);
+      } else if (t > 1) {
+        t = 1;
+        s = Clamp01((b - c) / a);
+      }
+    }
+  }
+  ClosestPair r;
+  r.wa = {1 - s, s, 0};
+  r.wb = {1 - t, t, 0};
+  return Finish(r, SegmentSimplex(p0, p1), SegmentSimplex(q0, q1));
+}
+
+ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
+                            const Vec3& c) {
+  const Simplex seg = SegmentSimplex(p0, p1);
+  const Simplex tri = TriangleSimplex(a, b, c);
+  const Vec3 e0 = b - a, e1 = c - a;
+  const Vec3 n = e0.cross(e1);
+  const double scale2 = std::max({e0.squaredNorm(), e1.squaredNorm(), (c - b).squaredNorm()});
+  const bool degenerate = n.squaredNorm() <= kTinyLength2 * std::max(scale2 * scale2, 1.0);
+  if (!degenerate) {
+    // Piercing: the segment crosses the plane at a point inside the triangle.
+    const double s0 = n.dot(p0 - a), s1 = n.dot(p1 - a);
+    if (((s0 <= 0 && s1 >= 0) || (s0 >= 0 && s1 <= 0)) && s0 != s1) {
+      const double t = s0 / (s0 - s1);
+      const Vec3 x = p0 + t * (p1 - p0);
+      const Vec3 v2 = x - a;
+      const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1);
+      const double d20 = v2.dot(e0), d21 = v2.dot(e1);
+      const double den = d00 * d11 - d01 * d01;
+      const double v = (d11 * d20 - d01 * d21) / den;
+      const double w = (d00 * d21 - d01 * d20) / den;
+      if (v >= 0 && w >= 0 && v + w <= 1) {
+        ClosestPair r;
+        r.wa = {1 - t, t, 0};
+        r.wb = {1 - v - w, v, w};
+        r.pa = seg.At(r.wa);
+        r.pb = tri.At(r.wb);
+        r.dist2 = 0;
+        return r;
+      }
+    }
+  }
+  // Otherwise the minimum is at an endpoint against the face or at the segment against an edge.
+  ClosestPair best = PointTriangle(p0, a, b, c);
+  {
+    ClosestPair q = PointTriangle(p1, a, b, c);
+    if (q.dist2 < best.dist2) {
+      best = q;
+      best.wa = {0, 1, 0};
+    }
+  }
+  const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  for (const auto& e : edges) {
+    const ClosestPair q = SegmentSegment(p0, p1, tri.v[e[0]], tri.v[e[1]]);
+    if (q.dist2 < best.dist2) {
+      best = q;
+      best.wb = {0, 0, 0};
+      best.wb[e[0]] = q.wb[0];
+      best.wb[e[1]] += q.wb[1];
+    }
+  }
+  return Finish(best, seg, tri);
+}
+
+ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
+  // If they do not intersect, the minimum is attained on an edge of one of them; if they do, an
+  // edge of one meets the other, and that query returns 0.
+  const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  ClosestPair best;
+  best.dist2 = -1;
+  for (const auto& e : edges) {
+    const ClosestPair q = SegmentTriangle(a.v[e[0]], a.v[e[1]], b.v[0], b.v[1], b.v[2]);
+    if (best.dist2 < 0 || q.dist2 < best.dist2) {
+      best = q;
+      best.wa = {0, 0, 0};
+      best.wa[e[0]] = q.wa[0];
+      best.wa[e[1]] += q.wa[1];
+      if (best.dist2 == 0) return best;
+    }
+  }
+  for (const auto& e : edges) {
+    const ClosestPair q = SegmentTriangle(b.v[e[0]], b.v[e[1]], a.v[0], a.v[1], a.v[2]);
+    if (q.dist2 < best.dist2) {
+      best = Swapped(q);
+      best.wb = {0, 0, 0};
+      best.wb[e[0]] = q.wa[0];
+      best.wb[e[1]] += q.wa[1];
+      if (best.dist2 == 0) return best;
+    }
+  }
+  return best;
+}
+
+ClosestPair Closest(const Simplex& a, const Simplex& b) {
+  switch (a.n * 4 + b.n) {
+    case 5: {  // point-point
+      ClosestPair r;
+      r.pa = a.v[0];
+      r.pb = b.v[0];
+      r.dist2 = (r.pa - r.pb).squaredNorm();
+      return r;
+    }
+    case 6:
+      return PointSegment(a.v[0], b.v[0], b.v[1]);
+    case 7:
+      return PointTriangle(a.v[0], b.v[0], b.v[1], b.v[2]);
+    case 9:
+      return Swapped(PointSegment(b.v[0], a.v[0], a.v[1]));
+    case 10:
+      return SegmentSegment(a.v[0], a.v[1], b.v[0], b.v[1]);
+    case 11:
+      return SegmentTriangle(a.v[0], a.v[1], b.v[0], b.v[1], b.v[2]);
+    case 13:
+      return Swapped(PointTriangle(b.v[0], a.v[0], a.v[1], a.v[2]));
+    case 14:
+      return Swapped(SegmentTriangle(b.v[0], b.v[1], a.v[0], a.v[1], a.v[2]));
+    default:
+      return TriangleTriangle(a, b);
+  }
+}
+
+double RoundedTriangleGap(const Simplex& core, double radius_mm, const Vec3& a, const Vec3& b,
+                          const Vec3& c) {
+  return std::sqrt(Closest(core, TriangleSimplex(a, b, c)).dist2) - radius_mm;
+}
+
+}  // namespace arthrosim::collision
