@@ -1,0 +1,34 @@
+#pragma once
+// Alternative soft-tissue integrator through SUNDIALS ARKODE (ARKStep): fixed step, fully
+// implicit, backward Euler as a 1-stage DIRK table, one Newton iteration per step
+// (ARKStepSetLinear) whose linear system is solved by a custom MATRIX_EMBEDDED SUNLinearSolver
+// wrapping the same CG, forces and stiffness as the built-in implicit Euler. ODE state
+// y = [x; v] over the SoftSystem slots. Selected by SolverOptions::integrator == kArkode.
+#include <cstdint>
+
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+#include "arthrosim/physics/contact.h"
+#include "arthrosim/physics/soft_system.h"
+
+namespace arthrosim::physics {
+
+class ArkodeIntegrator {
+ public:
+  ArkodeIntegrator();
+  ~ArkodeIntegrator();
+  ArkodeIntegrator(const ArkodeIntegrator&) = delete;
+  ArkodeIntegrator& operator=(const ArkodeIntegrator&) = delete;
+
+  /// One step of model.options.dt_s for all soft bodies of `system` (already built).
+  /// The integrator is re-initialised every step, so the result depends on State only.
+  SoftStepStats Step(SoftSystem* system, const Model& model, ContactSet* contacts,
+                     SpringSet* springs, State* state);
+
+  struct Impl;  // SUNDIALS objects and callback context (public for the C callbacks)
+
+ private:
+  Impl* impl_;
+};
+
+}  // namespace arthrosim::physics

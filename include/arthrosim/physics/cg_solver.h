@@ -1,0 +1,30 @@
+#pragma once
+// Preconditioned conjugate gradients for the symmetric positive-definite step systems.
+// All dot products are plain sequential sums in index order, so the result does not depend on
+// the thread count even when the operator parallelises its product.
+#include <Eigen/Core>
+
+namespace arthrosim::physics {
+
+/// A symmetric positive-definite operator with a preconditioner z = P^-1 r.
+class SpdOperator {
+ public:
+  virtual ~SpdOperator() = default;
+  /// y = A x.
+  virtual void Apply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const = 0;
+  /// z = P^-1 r (P approximates A; the identity is allowed).
+  virtual void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const = 0;
+};
+
+struct CgResult {
+  int iterations = 0;
+  double relative_residual = 0;  ///< |b - A x| / |b| (recursive residual), 0 when b = 0
+  bool converged = false;
+};
+
+/// Solves A x = b starting from *x (warm start). Stops when |r| <= tolerance |b| or after
+/// max_iterations products. b = 0 gives x = 0 with no iteration.
+CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                  int max_iterations, double tolerance);
+
+}  // namespace arthrosim::physics

@@ -1,0 +1,51 @@
+#pragma once
+// The cantilever-beam verification/benchmark scene shared by tests, the Google Benchmark
+// target and `arthrosim bench`: 100 x 10 x 10 mm, E = 10 MPa, nu = 0.3, rho = 1000 kg/m^3,
+// gravity 9.81 m/s^2 along -z, the x = 0 face fixed.
+#include <string>
+
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/physics/soft_system.h"
+
+namespace arthrosim::physics {
+
+/// Euler-Bernoulli tip deflection of the beam under its own weight, q L^4 / (8 E I), mm.
+inline constexpr double kBeamEulerBernoulliTipMm = 1.4715;
+
+/// A one-body Model of the beam on `mesh` (mm) with the given Rayleigh damping; nodes with
+/// x <= 1e-6 mm are fixed. dt and solver options are the Model defaults.
+Model MakeBeamModel(const mesh::TetMesh& mesh, double rayleigh_mass, double rayleigh_stiffness);
+
+/// Mean z displacement (mm, negative = down) of the rest nodes on the x = 100 mm face.
+double BeamTipDeflection(const State& state);
+
+struct BeamBenchOptions {
+  std::string mesh_path;  ///< e.g. tests/testdata/beam/beam_2.5.msh (3 573 tets)
+  double dt_s = 0.02;
+  int steps = 100;             ///< 2 s of simulated time at dt 0.02
+  double rayleigh_mass = 0.1;  ///< SOFA example scenes' Rayleigh factors
+  double rayleigh_stiffness = 0.1;
+  int cg_max_iterations = 100;
+  double cg_tolerance = 1e-8;
+  SystemProduct product = SystemProduct::kAssembled;
+  Integrator integrator = Integrator::kImplicitEuler;
+};
+
+struct BeamBenchResult {
+  int nodes = 0, tets = 0, steps = 0;
+  double ms_per_step = 0;                                  ///< mean wall time of SoftSystem::Step
+  double rotations_ms = 0, assembly_ms = 0, solve_ms = 0;  ///< means per step
+  double mean_cg_iterations = 0;
+  int max_cg_iterations = 0;
+  double mean_cg_residual = 0;
+  double static_tip_mm = 0;           ///< SolveStatic (linear) mean tip deflection
+  double settled_tip_mm = 0;          ///< after the dynamic run
+  double beam_settled_error_pct = 0;  ///< |settled - static| / |static| * 100
+};
+
+/// Loads the mesh, solves the static reference, runs `steps` dynamic steps from rest.
+BeamBenchResult RunBeamBenchmark(const BeamBenchOptions& options);
+
+}  // namespace arthrosim::physics

@@ -1,0 +1,212 @@
+#pragma once
+// All soft bodies of a Model solved as one linear corotational FEM system, advanced by one
+// linearised implicit Euler step per time step (SOFA EulerImplicitSolver):
+//   A dv = b,  A = (1 + h alpha) M + h (h + beta) K + h^2 C,
+//              b = h (f - alpha M v) - h (h + beta) K v - h^2 C v,
+//   v += dv,  x += h v,
+// with K the corotational stiffness (rotations frozen for the step), C the linearised penalty
+// contacts and springs, solved by block-Jacobi preconditioned CG warm-started from dv_warm.
+//
+// Unknowns live in "slots": body b owns the slot range [offset_b, offset_b + capacity_b) and
+// node i of b sits in slot offset_b + i. A node joined to an earlier body (Model::joins) is an
+// alias of that body's node and shares its slot. Every sum (forces, products, dot products,
+// masses) runs in (body, node) / (body, tet) order, so results are a function of the State
+// only: bit-identical for any thread count, and whether the system was built from scratch or
+// updated incrementally after topology changes.
+//
+// Derived data only: lives in the sim Workspace, rebuilt by Build() after a restore.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+#include "arthrosim/physics/block_sparse.h"
+#include "arthrosim/physics/contact.h"
+#include "arthrosim/physics/corotational_fem.h"
+
+namespace arthrosim::physics {
+
+class ArkodeIntegrator;
+
+/// How the CG applies the system matrix.
+enum class SystemProduct : std::uint8_t {
+  kAssembled,   ///< 3x3 block-sparse matrix assembled once per step (default, faster)
+  kMatrixFree,  ///< element-by-element product R K_e R^T at every CG iteration
+};
+
+/// Timings (wall-clock, ms) and solver figures of one Step.
+struct SoftStepStats {
+  double rotations_ms = 0;  ///< polar rotations + elastic forces
+  double assembly_ms = 0;   ///< matrix, preconditioner, contacts, right-hand side
+  double solve_ms = 0;      ///< CG
+  double update_ms = 0;     ///< integration and write-back to State
+  double total_ms = 0;
+  int cg_iterations = 0;
+  double cg_relative_residual = 0;   ///< final |b - A dv| / |b|
+  std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
+  std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
+  std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
+};
+
+/// Energies of the soft bodies, micro-joules (mN mm = kg mm^2/s^2).
+struct SoftEnergies {
+  double kinetic_uj = 0;
+  double elastic_uj = 0;
+  double gravitational_uj = 0;  ///< -sum m g . x (zero at x = 0)
+  double total() const { return kinetic_uj + elastic_uj + gravitational_uj; }
+};
+
+/// A body's node: (soft body index, node index).
+struct NodeRef {
+  std::int32_t body = -1;
+  std::int32_t node = -1;
+};
+
+class SoftSystem {
+ public:
+  SoftSystem();
+  ~SoftSystem();
+  SoftSystem(SoftSystem&&) noexcept;
+  SoftSystem& operator=(SoftSystem&&) noexcept;
+
+  /// Builds everything from (model, state): joins, slots, element rest data, masses, pattern.
+  void Build(const Model& model, const State& state);
+
+  /// Advances every soft body by one step of model.options.dt_s with the integrator of
+  /// model.solver. Contacts and springs targeting soft bodies enter the implicit system; their
+  /// force outputs are filled. Does not advance state->time_s or state->step.
+  SoftStepStats Step(const Model& model, ContactSet* contacts, SpringSet* springs, State* state);
+
+  /// Static equilibrium by a direct sparse solve (Eigen SimplicialLDLT) of the corotational
+  /// system linearised at the current positions, repeated `iterations` times (1 from the rest
+  /// state = linear elasticity). Gravity and elasticity only; sets velocities to zero.
+  /// Returns the final relative force residual |f| / |f_gravity| on free nodes.
+  double SolveStatic(const Model& model, State* state, int iterations = 1);
+
+  // ---- Topology changes: update State and the derived data, cost ~ touched elements. ----
+
+  /// Marks tets dead (cutting, shaving). Nodes left without an element drop out of the solve.
+  void RemoveTets(int body, std::span<const std::int32_t> tets, State* state);
+  /// Appends nodes to a body, each interpolating x, v, x_rest and dv_warm of up to four parent
+  /// nodes with the given weights (sum 1). Returns the index of the first new node.
+  std::int32_t AppendNodes(const Model& model, int body,
+                           std::span<const std::array<std::int32_t, 4>> parents,
+                           std::span<const std::array<double, 4>> weights, State* state);
+  /// Appends alive tets (positively oriented at rest) to a body; returns the first new index.
+  std::int32_t AppendTets(int body, std::span<const mesh::Tet> tets, State* state);
+  /// Splits tet `tet` 1 -> 4 at the interior point of barycentric coordinates `bary`: one new
+  /// node, the old tet removed, four tets appended. Returns the first new tet index.
+  std::int32_t SplitTet(const Model& model, int body, std::int32_t tet,
+                        const std::array<double, 4>& bary, State* state);
+  /// Sets new rest positions (mm) for nodes of a body (plastic update after shaving); joined
+  /// copies get the same rest position. Element rest data and masses follow.
+  void SetRestPositions(int body, std::span<const std::int32_t> nodes, const Points& rest_mm,
+                        State* state);
+
+  // ---- Queries ----
+
+  void set_product(SystemProduct product) { product_ = product; }
+  SystemProduct product() const { return product_; }
+  /// Lumped mass of a node (kg); 0 when it has no alive, non-degenerate element.
+  double NodeMass(int body, std::int32_t node) const;
+  /// Sum of all slot masses (kg), shared nodes counted once.
+  double TotalMass() const;
+  /// Sum of rest volumes of alive, non-degenerate tets of a body (mm^3).
+  double AliveVolume(int body) const;
+  /// True when the node is an unknown of the solve (has an element and is not fixed).
+  bool IsFree(int body, std::int32_t node) const;
+  /// The node whose slot this node shares (itself unless it is a joined alias).
+  NodeRef Owner(int body, std::int32_t node) const;
+  /// Kinetic, elastic (rotations recomputed from state) and gravitational energy.
+  SoftEnergies ComputeEnergies(const Model& model, const State& state) const;
+  /// Elastic force (mN) on every node of a body at the state's positions (0 on dead nodes).
+  Points ElasticForces(const Model& model, const State& state, int body) const;
+  std::int32_t slot_count() const { return slots_; }
+
+ private:
+  friend class ArkodeIntegrator;
+  friend struct ArkodeBridge;
+
+  struct ElemRef {
+    std::int32_t body;
+    std::int32_t tet;
+    bool operator<(const ElemRef& o) const { return body != o.body ? body < o.body : tet < o.tet; }
+    bool operator==(const ElemRef& o) const { return body == o.body && tet == o.tet; }
+  };
+  struct Body {
+    Lame lame;
+    double density = 0;  // kg/mm^3
+    double alpha = 0;    // 1/s
+    double beta = 0;     // s
+    std::int32_t offset = 0;
+    std::int32_t capacity = 0;
+    std::int32_t model_nodes = 0;     // nodes present in the Model (join candidates)
+    std::vector<std::int32_t> slot;   // per node
+    std::vector<std::uint8_t> owner;  // per node
+    std::vector<TetRest> rest;        // per tet
+    std::vector<std::array<std::int32_t, 4>> tet_slot;
+    std::vector<std::array<std::int32_t, 6>> tet_pair;  // block index per edge, -1 if dead
+    std::vector<std::uint8_t> alive;                    // per tet, copy of state
+    std::vector<Mat3> rotation;                         // per tet, this step
+    std::vector<std::array<Vec3, 4>> force;             // per tet, this step
+  };
+  // A linearised contact or spring: stiffness matrix k (mN/mm) on the point sum_i w_i x_i.
+  struct PointTerm {
+    std::array<std::int32_t, 4> slot{-1, -1, -1, -1};
+    std::array<double, 4> w{0, 0, 0, 0};
+    Mat3 k = Mat3::Zero();
+  };
+
+  // Layout and bookkeeping.
+  void Layout(const Model& model, const State& state);
+  void AddElement(int body, std::int32_t tet, const SoftBodyState& sb);
+  void RemoveElement(int body, std::int32_t tet);
+  void RecomputeSlot(std::int32_t slot);
+  void RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb);
+  bool NeedsRebuild(int body, std::int32_t new_nodes) const;
+
+  // Step stages (shared with the ARKODE integrator).
+  void Gather(const State& state);
+  void ComputeRotationsAndForces(const Eigen::VectorXd& x);
+  void AddGravity(const Model& model);
+  void AssembleStiffness(double scale_h, double h, bool assembled);
+  void BuildPointTerms(const Model& model, const Eigen::VectorXd& x, ContactSet* contacts,
+                       SpringSet* springs, bool add_forces);
+  void BuildPreconditioner(double h);
+  void ApplyStiffness(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;  // Kh x (scaled)
+  // Element-by-element sum_b scales[b] K_b x (free rows only).
+  void ApplyElementStiffness(const Eigen::VectorXd& x, const std::vector<double>& scales,
+                             Eigen::VectorXd* y) const;
+  void ApplyPointTerms(double scale, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+  void ApplySystem(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+  void Scatter(State* state) const;
+  void FillOutputs(const Model& model, ContactSet* contacts, SpringSet* springs) const;
+
+  std::vector<Body> bodies_;
+  std::int32_t slots_ = 0;
+  // Per slot.
+  std::vector<NodeRef> slot_node_;                  // owner copy, body -1 for a gap
+  std::vector<std::vector<NodeRef>> slot_aliases_;  // joined copies other than the owner
+  std::vector<std::vector<ElemRef>> incident_;      // alive tets touching the slot, sorted
+  std::vector<double> mass_;                        // kg
+  std::vector<double> alpha_mass_;                  // kg/s
+  std::vector<std::uint8_t> fixed_;
+  std::vector<std::uint8_t> free_;  // unknown of the solve
+  BlockSparseMatrix kmat_;          // h (h + beta) K, assembled mode
+
+  // Step scratch (3 * slots_).
+  Eigen::VectorXd x_, v_, f_, b_, dv_, tmp_;
+  std::vector<Mat3> precond_;    // inverse diagonal blocks per slot
+  double h_ = 0;                 // step of the current system
+  std::vector<double> kscales_;  // per body scale of K in the system
+  std::vector<PointTerm> terms_;
+  SystemProduct product_ = SystemProduct::kAssembled;
+  std::unique_ptr<ArkodeIntegrator> arkode_;
+};
+
+}  // namespace arthrosim::physics

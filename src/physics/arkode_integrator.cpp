@@ -1,0 +1,251 @@
+#include "arthrosim/physics/arkode_integrator.h"
+
+#include <arkode/arkode_arkstep.h>
+#include <arkode/arkode_butcher.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sundials/sundials_linearsolver.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+#include "arthrosim/physics/cg_solver.h"
+
+namespace arthrosim::physics {
+
+struct ArkodeIntegrator::Impl {
+  SUNContext ctx = nullptr;
+  void* ark = nullptr;
+  N_Vector y = nullptr;
+  SUNLinearSolver ls = nullptr;
+  sunindextype size = 0;
+  // Context of the current step, read by the callbacks.
+  SoftSystem* sys = nullptr;
+  const Model* model = nullptr;
+  ContactSet* contacts = nullptr;
+  SpringSet* springs = nullptr;
+  int cg_iterations = 0;
+  double cg_residual = 0;
+  double solve_ms = 0;
+
+  ~Impl() { Release(); }
+  void Release() {
+    if (ark) ARKStepFree(&ark);
+    if (y) N_VDestroy(y);
+    if (ls) SUNLinSolFreeEmpty(ls);
+    if (ctx) SUNContext_Free(&ctx);
+    ark = nullptr;
+    y = nullptr;
+    ls = nullptr;
+    ctx = nullptr;
+  }
+};
+
+namespace {
+
+void Check(int flag, const char* what) {
+  if (flag < 0)
+    throw std::runtime_error(std::string("ARKODE: ") + what + " failed, flag " +
+                             std::to_string(flag));
+}
+
+Eigen::Map<Eigen::VectorXd> Part(N_Vector v, Eigen::Index half, int which) {
+  return Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(v) + which * half, half);
+}
+
+}  // namespace
+
+// Friend bridge: the callbacks use SoftSystem's private step stages through this struct.
+struct ArkodeBridge {
+  // ydot = [v; M^-1 (f(x) - alpha M v - beta K v)] on free slots, 0 elsewhere.
+  static int Rhs(sunrealtype, N_Vector y, N_Vector ydot, void* data) {
+    auto* im = static_cast<ArkodeIntegrator::Impl*>(data);
+    SoftSystem& s = *im->sys;
+    const Eigen::Index half = 3 * s.slots_;
+    const Eigen::VectorXd x = Part(y, half, 0);
+    const Eigen::VectorXd v = Part(y, half, 1);
+    s.ComputeRotationsAndForces(x);
+    s.AddGravity(*im->model);
+    s.BuildPointTerms(*im->model, x, im->contacts, im->springs, true);
+    std::vector<double> betas(s.bodies_.size());
+    for (std::size_t b = 0; b < betas.size(); ++b) betas[b] = s.bodies_[b].beta;
+    s.ApplyElementStiffness(v, betas, &s.tmp_);
+    auto dx = Part(ydot, half, 0);
+    auto dv = Part(ydot, half, 1);
+    for (std::int32_t k = 0; k < s.slots_; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      const Eigen::Index o = 3 * k;
+      if (!s.free_[i]) {
+        dx.segment<3>(o).setZero();
+        dv.segment<3>(o).setZero();
+        continue;
+      }
+      dx.segment<3>(o) = v.segment<3>(o);
+      dv.segment<3>(o) =
+          (s.f_.segment<3>(o) - s.alpha_mass_[i] * v.segment<3>(o) - s.tmp_.segment<3>(o)) /
+          s.mass_[i];
+    }
+    return 0;
+  }
+
+  // (I - gamma J) [dx; dv] = [bx; bv] with J the Jacobian of Rhs (rotations frozen):
+  //   A dv = M bv - gamma (K + C) bx,  A = (1 + gamma alpha) M + gamma (gamma + beta) K
+  //   + gamma^2 C,  dx = bx + gamma dv. The same A as the built-in implicit Euler with h = gamma.
+  static int Solve(SUNLinearSolver ls, SUNMatrix, N_Vector x, N_Vector b, sunrealtype) {
+    auto* im = static_cast<ArkodeIntegrator::Impl*>(ls->content);
+    SoftSystem& s = *im->sys;
+    const auto t0 = std::chrono::steady_clock::now();
+    sunrealtype tcur = 0, gamma = 0;
+    N_Vector zpred = nullptr, z = nullptr, fi = nullptr, sdata = nullptr;
+    void* user = nullptr;
+    // MATRIX_EMBEDDED: ARKLS never calls setup, so (re)linearise here at the current iterate.
+    if (ARKStepGetNonlinearSystemData(im->ark, &tcur, &zpred, &z, &fi, &gamma, &sdata, &user) < 0)
+      return -1;
+    const Eigen::Index half = 3 * s.slots_;
+    const Eigen::VectorXd xz = Part(z, half, 0);
+    s.ComputeRotationsAndForces(xz);
+    s.AssembleStiffness(gamma, gamma, s.product_ == SystemProduct::kAssembled);
+    s.BuildPointTerms(*im->model, xz, nullptr, nullptr, false);
+    s.BuildPointTerms(*im->model, xz, im->contacts, im->springs, false);
+    s.BuildPreconditioner(gamma);
+    const Eigen::VectorXd bx = Part(b, half, 0);
+    const Eigen::VectorXd bv = Part(b, half, 1);
+    std::vector<double> ones(s.bodies_.size(), 1.0);
+    s.ApplyElementStiffness(bx, ones, &s.tmp_);
+    s.ApplyPointTerms(1.0, bx, &s.tmp_);
+    for (std::int32_t k = 0; k < s.slots_; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      const Eigen::Index o = 3 * k;
+      s.b_.segment<3>(o) =
+          s.free_[i] ? Eigen::Vector3d(s.mass_[i] * bv.segment<3>(o) - gamma * s.tmp_.segment<3>(o))
+                     : Eigen::Vector3d::Zero();
+    }
+    class Op final : public SpdOperator {
+     public:
+      explicit Op(SoftSystem& s) : s_(s) {}
+      void Apply(const Eigen::VectorXd& v, Eigen::VectorXd* y) const override {
+        s_.ApplySystem(v, y);
+      }
+      void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const override {
+        for (std::size_t k = 0; k < s_.precond_.size(); ++k) {
+          const auto o = static_cast<Eigen::Index>(3 * k);
+          z->segment<3>(o) = s_.precond_[k] * r.segment<3>(o);
+        }
+      }
+
+     private:
+      SoftSystem& s_;
+    } op(s);
+    const CgResult cg = SolvePcg(op, s.b_, &s.dv_, im->model->solver.cg_max_iterations,
+                                 im->model->solver.cg_tolerance);
+    im->cg_iterations += cg.iterations;
+    im->cg_residual = cg.relative_residual;
+    auto ox = Part(x, half, 0);
+    auto ov = Part(x, half, 1);
+    for (std::int32_t k = 0; k < s.slots_; ++k) {
+      const Eigen::Index o = 3 * k;
+      if (s.free_[static_cast<std::size_t>(k)]) {
+        ov.segment<3>(o) = s.dv_.segment<3>(o);
+        ox.segment<3>(o) = bx.segment<3>(o) + gamma * s.dv_.segment<3>(o);
+      } else {
+        ov.segment<3>(o) = bv.segment<3>(o);
+        ox.segment<3>(o) = bx.segment<3>(o);
+      }
+    }
+    im->solve_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return cg.converged || cg.iterations >= im->model->solver.cg_max_iterations ? 0 : 1;
+  }
+
+  static SUNLinearSolver_Type Type(SUNLinearSolver) { return SUNLINEARSOLVER_MATRIX_EMBEDDED; }
+  static SUNLinearSolver_ID Id(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
+  static int NumIters(SUNLinearSolver ls) {
+    return static_cast<ArkodeIntegrator::Impl*>(ls->content)->cg_iterations;
+  }
+  static sunrealtype ResNorm(SUNLinearSolver ls) {
+    return static_cast<ArkodeIntegrator::Impl*>(ls->content)->cg_residual;
+  }
+  static int Free(SUNLinearSolver) { return 0; }  // owned by Impl
+};
+
+ArkodeIntegrator::ArkodeIntegrator() : impl_(new Impl) {}
+ArkodeIntegrator::~ArkodeIntegrator() { delete impl_; }
+
+SoftStepStats ArkodeIntegrator::Step(SoftSystem* system, const Model& model, ContactSet* contacts,
+                                     SpringSet* springs, State* state) {
+  using Clock = std::chrono::steady_clock;
+  const auto t_start = Clock::now();
+  Impl& im = *impl_;
+  SoftSystem& s = *system;
+  const sunindextype n = 6 * static_cast<sunindextype>(s.slots_);
+  const double h = model.options.dt_s;
+  if (im.size != n) {
+    im.Release();
+    Check(SUNContext_Create(nullptr, &im.ctx), "SUNContext_Create");
+    im.y = N_VNew_Serial(n, im.ctx);
+    im.ls = SUNLinSolNewEmpty(im.ctx);
+    im.ls->content = &im;
+    im.ls->ops->gettype = ArkodeBridge::Type;
+    im.ls->ops->getid = ArkodeBridge::Id;
+    im.ls->ops->solve = ArkodeBridge::Solve;
+    im.ls->ops->numiters = ArkodeBridge::NumIters;
+    im.ls->ops->resnorm = ArkodeBridge::ResNorm;
+    im.ls->ops->free = ArkodeBridge::Free;
+    im.size = n;
+  }
+  s.Gather(*state);
+  auto y = Part(im.y, 3 * s.slots_, 0);
+  y = s.x_;
+  Part(im.y, 3 * s.slots_, 1) = s.v_;
+  const Eigen::VectorXd v_old = s.v_;
+  // A fresh integrator every step: nothing but State carries over (restore-safe).
+  if (im.ark) ARKStepFree(&im.ark);
+  im.ark = ARKStepCreate(nullptr, ArkodeBridge::Rhs, state->time_s, im.y, im.ctx);
+  if (!im.ark) throw std::runtime_error("ARKODE: ARKStepCreate failed");
+  const sunrealtype c[1] = {1}, a[1] = {1}, bw[1] = {1};
+  ARKodeButcherTable be =
+      ARKodeButcherTable_Create(1, 1, 0, const_cast<sunrealtype*>(c), const_cast<sunrealtype*>(a),
+                                const_cast<sunrealtype*>(bw), nullptr);
+  Check(ARKStepSetTables(im.ark, 1, 0, be, nullptr), "ARKStepSetTables");
+  ARKodeButcherTable_Free(be);
+  Check(ARKStepSetUserData(im.ark, &im), "ARKStepSetUserData");
+  Check(ARKStepSStolerances(im.ark, 1e-6, 1e-9), "ARKStepSStolerances");
+  Check(ARKStepSetFixedStep(im.ark, h), "ARKStepSetFixedStep");
+  Check(ARKStepSetLinearSolver(im.ark, im.ls, nullptr), "ARKStepSetLinearSolver");
+  Check(ARKStepSetLinear(im.ark, 0), "ARKStepSetLinear");  // one Newton iteration (as SOFA)
+  Check(ARKStepSetDeduceImplicitRhs(im.ark, SUNTRUE), "ARKStepSetDeduceImplicitRhs");
+  Check(ARKStepSetPredictorMethod(im.ark, 0), "ARKStepSetPredictorMethod");  // z0 = y_n
+  im.sys = system;
+  im.model = &model;
+  im.contacts = contacts;
+  im.springs = springs;
+  im.cg_iterations = 0;
+  im.cg_residual = 0;
+  im.solve_ms = 0;
+  sunrealtype t = state->time_s;
+  Check(ARKStepEvolve(im.ark, state->time_s + h, im.y, &t, ARK_ONE_STEP), "ARKStepEvolve");
+
+  SoftStepStats stats;
+  s.x_ = Part(im.y, 3 * s.slots_, 0);
+  s.v_ = Part(im.y, 3 * s.slots_, 1);
+  s.dv_ = s.v_ - v_old;
+  for (std::int32_t k = 0; k < s.slots_; ++k) {
+    if (s.free_[static_cast<std::size_t>(k)]) {
+      ++stats.active_nodes;
+    } else {
+      s.v_.segment<3>(3 * k).setZero();
+      s.dv_.segment<3>(3 * k).setZero();
+    }
+  }
+  s.Scatter(state);
+  s.FillOutputs(model, contacts, springs);
+  stats.cg_iterations = im.cg_iterations;
+  stats.cg_relative_residual = im.cg_residual;
+  stats.solve_ms = im.solve_ms;
+  stats.active_contacts = static_cast<std::int32_t>(s.terms_.size());
+  stats.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t_start).count();
+  return stats;
+}
+
+}  // namespace arthrosim::physics

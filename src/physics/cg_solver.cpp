@@ -1,0 +1,65 @@
+#include "arthrosim/physics/cg_solver.h"
+
+#include <cmath>
+
+namespace arthrosim::physics {
+namespace {
+
+// Sequential dot product: Eigen's may vectorise with a layout-dependent order; this one is fixed.
+double Dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  double s = 0;
+  const Eigen::Index n = a.size();
+  const double* pa = a.data();
+  const double* pb = b.data();
+  for (Eigen::Index i = 0; i < n; ++i) s += pa[i] * pb[i];
+  return s;
+}
+
+}  // namespace
+
+CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                  int max_iterations, double tolerance) {
+  CgResult result;
+  const double b_norm = std::sqrt(Dot(b, b));
+  if (b_norm == 0 || !std::isfinite(b_norm)) {
+    x->setZero();
+    return result;
+  }
+  const Eigen::Index n = b.size();
+  Eigen::VectorXd r(n), z(n), p(n), q(n);
+  a.Apply(*x, &q);
+  r = b - q;
+  double r_norm = std::sqrt(Dot(r, r));
+  // A warm start worse than zero is dropped.
+  if (!(r_norm < b_norm)) {
+    x->setZero();
+    r = b;
+    r_norm = b_norm;
+  }
+  a.Precondition(r, &z);
+  p = z;
+  double rz = Dot(r, z);
+  int it = 0;
+  while (r_norm > tolerance * b_norm && it < max_iterations) {
+    a.Apply(p, &q);
+    const double pq = Dot(p, q);
+    if (!(pq > 0)) break;  // breakdown (not SPD in floating point): keep the current x
+    const double alpha = rz / pq;
+    *x += alpha * p;
+    r -= alpha * q;
+    ++it;
+    r_norm = std::sqrt(Dot(r, r));
+    if (r_norm <= tolerance * b_norm) break;
+    a.Precondition(r, &z);
+    const double rz_next = Dot(r, z);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    p = z + beta * p;
+  }
+  result.iterations = it;
+  result.relative_residual = r_norm / b_norm;
+  result.converged = r_norm <= tolerance * b_norm;
+  return result;
+}
+
+}  // namespace arthrosim::physics
