@@ -1,0 +1,171 @@
+// Evaluates a script Timeline at a step time: pure function of (timeline, t).
+#include "arthrosim/input/script_source.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "arthrosim/core/error.h"
+#include "arthrosim/core/units.h"
+#include "script_timeline.h"
+
+namespace arthrosim::input {
+namespace {
+
+/// Index of the last action with t0 <= t, or -1.
+template <class A>
+int ActionAt(const std::vector<A>& v, double t) {
+  auto it = std::upper_bound(v.begin(), v.end(), t, [](double x, const A& a) { return x < a.t0; });
+  return static_cast<int>(it - v.begin()) - 1;
+}
+
+struct HandSample {
+  HandState state;
+  std::uint8_t press = 0;
+};
+
+HandSample EvaluateHand(const Timeline& tl, int slot, double t) {
+  const std::vector<HandAction>& v = tl.hands[slot];
+  HandSample out;
+  const int i = ActionAt(v, t);
+  if (i < 0) return out;
+  const HandAction& a = v[i];
+  if (t >= a.t1) {
+    out.state = a.end;
+    return out;
+  }
+  const double s = (t - a.t0) / (a.t1 - a.t0);
+  out.state = a.start;
+  switch (a.op) {
+    case HandOp::kPick:
+    case HandOp::kMove:
+    case HandOp::kPush:
+    case HandOp::kWithdraw: {
+      const Vec3& p0 = a.start.position_mm;
+      const Vec3& p1 = a.end.position_mm;
+      Vec3 p;
+      if (a.overshoot_mm.squaredNorm() > 0) {
+        // Overshoot: reach past the target in the first 3/4, come back in the last 1/4.
+        const Vec3 far = p1 + a.overshoot_mm;
+        p = s < 0.75 ? Lerp(p0, far, Ease(a.easing, s / 0.75))
+                     : Lerp(far, p1, Ease(a.easing, (s - 0.75) / 0.25));
+      } else {
+        p = Lerp(p0, p1, Ease(a.easing, s));
+      }
+      out.state.position_mm = p;
+      if (a.op == HandOp::kMove) {
+        const Vec3 axis = p - a.start.portal_mm;
+        if (a.aim_portal) {
+          out.state.orientation =
+              axis.norm() > 1e-6 ? AimAlong(axis, a.roll_rad) : a.start.orientation;
+        } else {
+          out.state.orientation = Slerp(a.start.orientation, a.end.orientation, Ease(a.easing, s));
+        }
+      }
+      break;
+    }
+    case HandOp::kJaw:
+      out.state.jaw = Lerp(a.start.jaw, a.end.jaw, Ease(a.easing, s));
+      break;
+    case HandOp::kPress:
+      out.press = a.press_bits;
+      break;
+    default:
+      break;
+  }
+  return out;
+}
+
+/// Buttons down at any time in (t - dt, t].
+std::uint8_t LatchedButtons(const Timeline& tl, int slot, double t) {
+  const std::vector<HandAction>& v = tl.hands[slot];
+  const double lo = t - tl.dt_s;
+  std::uint8_t bits = 0;
+  const HandSample now = EvaluateHand(tl, slot, t);
+  bits |= now.state.held | now.press;
+  const int k = ActionAt(v, lo);
+  if (k >= 0) bits |= lo < v[k].t1 ? v[k].start.held : v[k].end.held;
+  for (const HandAction& a : v) {
+    if (a.t0 > t) break;
+    if (a.t0 > lo) bits |= a.start.held | a.end.held;
+    if (a.op == HandOp::kPress && a.t1 > lo) bits |= a.press_bits;
+  }
+  return bits;
+}
+
+Vec3 TremorAt(const Tremor& tr, double t) {
+  if (tr.amplitude_mm == 0) return Vec3::Zero();
+  static constexpr double kWeight[3] = {0.5, 0.3, 0.2};
+  Vec3 d;
+  for (int ax = 0; ax < 3; ++ax) {
+    double sum = 0;
+    for (int c = 0; c < 3; ++c) {
+      sum += kWeight[c] * std::sin(2 * units::kPi * tr.freq_hz[ax][c] * t + tr.phase[ax][c]);
+    }
+    d[ax] = tr.amplitude_mm * sum;
+  }
+  return d;
+}
+
+Vec3 LookPointAt(const Timeline& tl, const LookTarget& lt, double t) {
+  return lt.slot < 0 ? lt.point_mm : EvaluateHand(tl, lt.slot, t).state.position_mm;
+}
+
+}  // namespace
+
+Vec3 HandTipAt(const Timeline& tl, int slot, double t) {
+  return EvaluateHand(tl, slot, t).state.position_mm;
+}
+
+ScriptSource::ScriptSource(const std::string& yaml_text, const std::string& file,
+                           const Model& model, const ScriptOptions& options)
+    : timeline_(std::make_unique<Timeline>(BuildTimeline(yaml_text, file, model, options))) {}
+
+ScriptSource::~ScriptSource() = default;
+
+std::unique_ptr<ScriptSource> ScriptSource::Open(const std::string& path, const Model& model,
+                                                 const ScriptOptions& options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "", "cannot open script file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return std::make_unique<ScriptSource>(ss.str(), path, model, options);
+}
+
+bool ScriptSource::Finished(double t_s) const { return t_s > timeline_->end_time_s; }
+double ScriptSource::end_time_s() const { return timeline_->end_time_s; }
+const std::string& ScriptSource::name() const { return timeline_->name; }
+
+void ScriptSource::Frame(std::int64_t /*step*/, double t, InputFrame* out) {
+  const Timeline& tl = *timeline_;
+  for (int s = 0; s < kToolSlots; ++s) {
+    const HandSample h = EvaluateHand(tl, s, t);
+    ToolCommand& tc = out->tools[s];
+    tc.instrument = h.state.instrument;
+    tc.pose.position_mm = h.state.position_mm;
+    if (h.state.instrument >= 0) tc.pose.position_mm += TremorAt(tl.tremor[s], t);
+    tc.pose.orientation = h.state.orientation;
+    tc.jaw = h.state.jaw;
+    tc.buttons = LatchedButtons(tl, s, t);
+  }
+  CameraCommand& cam = out->camera;
+  const int i = ActionAt(tl.camera, t);
+  if (i < 0) {
+    cam = CameraCommand{};
+    cam.pose.position_mm = tl.camera_initial.position_mm;
+    cam.pose.orientation = tl.camera_initial_orientation;
+    return;
+  }
+  const CameraAction& a = tl.camera[i];
+  const double u = a.blend_s > 0 ? std::min(1.0, (t - a.t0) / a.blend_s) : 1.0;
+  const double e = Ease(a.easing, u);
+  const Vec3 eye = Lerp(a.start.position_mm, a.end.position_mm, e);
+  const Vec3 look = Lerp(LookPointAt(tl, a.start.look, t), LookPointAt(tl, a.end.look, t), e);
+  cam.pose.position_mm = eye;
+  cam.pose.orientation = LookAt(eye, look);
+  cam.lens_roll_rad = Lerp(a.start.lens_roll_rad, a.end.lens_roll_rad, e);
+  cam.head_roll_rad = Lerp(a.start.head_roll_rad, a.end.head_roll_rad, e);
+}
+
+}  // namespace arthrosim::input
