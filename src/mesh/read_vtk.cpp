@@ -117,10 +117,8 @@ class VtkReader {
       c_.Token("OFFSETS data type");
       if (a < 1) c_.Fail("CELLS count", "expected at least 1 offset");
       std::vector<std::int64_t> off(static_cast<std::size_t>(a));
-      std::vector<int> off_line(static_cast<std::size_t>(a));
       for (std::int64_t i = 0; i < a; ++i) {
         off[static_cast<std::size_t>(i)] = c_.IntIn("offset", 0, size);
-        off_line[static_cast<std::size_t>(i)] = c_.line();
         if (i > 0 && off[static_cast<std::size_t>(i)] < off[static_cast<std::size_t>(i - 1)]) {
           c_.Fail("offset", "offsets must not decrease");
         }

@@ -68,7 +68,15 @@ double AliveVolume(const TetMesh& m, const std::vector<std::uint8_t>& alive) {
 
 TEST(BoundaryTest, KuhnCubeBoundaryIsClosedOutwardAndIndexedLikeTheTets) {
   const int n = 4;
-  const TetMesh m = testing::KuhnCube(n, 0.5);
+  TetMesh m = testing::KuhnCube(n, 0.5);
+  // Vary each tet's node order by even permutations (orientation kept) so that every local
+  // face number occurs on the boundary.
+  const int even[5][4] = {{0, 1, 2, 3}, {1, 2, 0, 3}, {2, 0, 1, 3}, {0, 2, 3, 1}, {1, 0, 3, 2}};
+  for (std::size_t i = 0; i < m.tets.size(); ++i) {
+    const Tet t = m.tets[i];
+    for (int k = 0; k < 4; ++k) m.tets[i][k] = t[even[i % 5][k]];
+  }
+  int per_face[4] = {0, 0, 0, 0};
   const std::vector<BoundaryFace> faces = ExtractBoundary(m.tets);
   EXPECT_EQ(faces.size(), static_cast<std::size_t>(6 * n * n * 2));
   ExpectClosedAndConsistent(faces);
@@ -79,6 +87,7 @@ TEST(BoundaryTest, KuhnCubeBoundaryIsClosedOutwardAndIndexedLikeTheTets) {
     const BoundaryFace& f = faces[i];
     const Tet& t = m.tets[static_cast<std::size_t>(f.tet)];
     EXPECT_EQ(f.nodes, TetFace(t, f.face));
+    ++per_face[f.face];
     EXPECT_EQ(std::count(f.nodes.begin(), f.nodes.end(), t[f.face]), 0);  // opposite node
     // Outward: the normal points away from the owning tet's centroid.
     const Vec3 a = m.nodes.col(f.nodes[0]), b = m.nodes.col(f.nodes[1]),
@@ -91,6 +100,7 @@ TEST(BoundaryTest, KuhnCubeBoundaryIsClosedOutwardAndIndexedLikeTheTets) {
       EXPECT_TRUE(p.tet < f.tet || (p.tet == f.tet && p.face < f.face)) << "not sorted at " << i;
     }
   }
+  for (int f = 0; f < 4; ++f) EXPECT_GT(per_face[f], 0) << "local face " << f;
 }
 
 TEST(BoundaryTest, GmshBoxBoundaryIsTheSkinGroup) {
