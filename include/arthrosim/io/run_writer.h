@@ -1,0 +1,60 @@
+#pragma once
+// RunWriter: the run's HDF5 output (layout in docs/hdf5-layout.md). The whole layout is created
+// up front, then the file switches to SWMR so that a killed run leaves a file readable (h5py with
+// swmr=True, RunReader) up to at least the last flush. Frames are appended to fixed extensible
+// datasets; what changes rarely (alive tets, bone surfaces, constraints) is written as blocks
+// only when it changed, with per-frame offset/count arrays. A run.xmf sidecar for ParaView is
+// rewritten atomically at every flush and at Close().
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+
+namespace arthrosim::io {
+
+struct RunWriterOptions {
+  int deflate_level = 4;   ///< zlib level 0..9 (with byte shuffle) for every dataset
+  bool write_xdmf = true;  ///< keep <path without extension>.xmf next to the file
+};
+
+class RunWriter {
+ public:
+  /// Creates `path` (truncating it) with datasets for every body, bone, thread and instrument of
+  /// `model`, and writes `initial` as frame 0. The Model and State must match (same counts).
+  /// @throws InputError (file = path, field output_file) if the file cannot be created;
+  ///         std::invalid_argument if `initial` does not fit `model`. No file is left behind.
+  RunWriter(const std::string& path, const Model& model, const State& initial,
+            RunWriterOptions options = {});
+  /// Closes the file properly (errors are swallowed; call Close() to see them).
+  ~RunWriter();
+  RunWriter(const RunWriter&) = delete;
+  RunWriter& operator=(const RunWriter&) = delete;
+
+  /// Records the events of `s` (s.events, the events of step s.step). Call it after every step
+  /// when frames are written less often than every step; Append() records them otherwise.
+  void RecordEvents(const State& s);
+  /// Writes `s` as the next frame (its step must be greater than the last frame's). Flushes when
+  /// s.time_s has advanced Model::options.flush_interval_s or more since the last flush.
+  /// @throws std::invalid_argument if `s` does not fit the model (checked before any write).
+  void Append(const State& s);
+  /// Makes every frame written so far durable and readable by SWMR readers; rewrites the .xmf.
+  void Flush();
+  /// Flushes, writes the .xmf and closes. Further Append/Flush calls throw std::logic_error.
+  void Close();
+
+  /// Frames written so far (including frame 0).
+  std::int64_t frames() const;
+  /// Frames made durable by the last flush.
+  std::int64_t flushed_frames() const;
+  const std::string& path() const;
+  /// The sidecar path ("" when options.write_xdmf is false).
+  const std::string& xdmf_path() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace arthrosim::io

@@ -1,0 +1,184 @@
+#include "arthrosim/io/xdmf.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+#include "arthrosim/io/hdf5.h"
+#include "arthrosim/io/hdf5_layout.h"
+
+namespace arthrosim::io {
+namespace {
+
+std::string Escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+// A 2-D HyperSlab item selecting rows [offset, offset+count) of a [total_rows, columns] dataset.
+void AppendSlab(std::string& x, const std::string& h5, const XdmfSeries& s, std::int64_t offset,
+                std::int64_t count, const char* indent) {
+  fmt::format_to(std::back_inserter(x),
+                 "{0}<DataItem ItemType=\"HyperSlab\" Dimensions=\"{1} {2}\" Type=\"HyperSlab\">\n"
+                 "{0}  <DataItem Dimensions=\"3 2\" Format=\"XML\">{3} 0 1 1 {1} {2}</DataItem>\n"
+                 "{0}  <DataItem Dimensions=\"{4} {2}\" NumberType=\"{5}\" Precision=\"{6}\" "
+                 "Format=\"HDF\">{7}:{8}</DataItem>\n"
+                 "{0}</DataItem>\n",
+                 indent, count, s.columns, offset, s.total_rows, s.is_float ? "Float" : "Int",
+                 s.precision, Escape(h5), Escape(s.dataset));
+}
+
+const char* TopologyType(XdmfCell c) {
+  switch (c) {
+    case XdmfCell::kTetrahedron:
+      return "Tetrahedron";
+    case XdmfCell::kTriangle:
+      return "Triangle";
+    case XdmfCell::kPolyline:
+      return "Polyline";
+  }
+  return "Tetrahedron";
+}
+
+}  // namespace
+
+std::string XdmfText(const XdmfRun& run) {
+  std::string x;
+  x.reserve(1024 + run.times.size() * run.meshes.size() * 900);
+  x += "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n";
+  x += "    <Grid Name=\"arthrosim\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  std::size_t frames = run.times.size();
+  for (const XdmfMesh& m : run.meshes) {
+    frames = std::min({frames, m.cells.offset.size(), m.cells.count.size(), m.points.offset.size(),
+                       m.points.count.size()});
+  }
+  for (std::size_t t = 0; t < frames; ++t) {
+    fmt::format_to(std::back_inserter(x),
+                   "      <Grid Name=\"frame{}\" GridType=\"Collection\" "
+                   "CollectionType=\"Spatial\">\n        <Time Value=\"{}\"/>\n",
+                   t, run.times[t]);
+    for (const XdmfMesh& m : run.meshes) {
+      const std::int64_t nc = m.cells.count[t];
+      const std::int64_t np = m.points.count[t];
+      if (nc <= 0 || np <= 0) continue;
+      fmt::format_to(std::back_inserter(x),
+                     "        <Grid Name=\"{}\" GridType=\"Uniform\">\n"
+                     "          <Topology TopologyType=\"{}\" NumberOfElements=\"{}\"{}>\n",
+                     Escape(m.name), TopologyType(m.cell), nc,
+                     m.cell == XdmfCell::kPolyline ? " NodesPerElement=\"2\"" : "");
+      AppendSlab(x, run.h5_name, m.cells, m.cells.offset[t], nc, "            ");
+      x += "          </Topology>\n          <Geometry GeometryType=\"XYZ\">\n";
+      AppendSlab(x, run.h5_name, m.points, m.points.offset[t], np, "            ");
+      x += "          </Geometry>\n        </Grid>\n";
+    }
+    x += "      </Grid>\n";
+  }
+  x += "    </Grid>\n  </Domain>\n</Xdmf>\n";
+  return x;
+}
+
+void WriteFileAtomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    out.close();
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw std::runtime_error("cannot write '" + tmp + "'");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error("cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
+  }
+}
+
+std::string XdmfPathFor(const std::string& h5_path) {
+  std::filesystem::path p(h5_path);
+  p.replace_extension(".xmf");
+  return p.string();
+}
+
+namespace {
+
+// Reads the per-frame index arrays of block series `name` in group `g`.
+XdmfSeries ReadSeries(const h5::Group& g, const std::string& name, int columns, bool is_float,
+                      int precision) {
+  XdmfSeries s;
+  s.dataset = g.path() + "/" + name;
+  s.columns = columns;
+  s.is_float = is_float;
+  s.precision = precision;
+  s.total_rows = static_cast<std::int64_t>(g.OpenDataset(name).dims()[0]);
+  s.offset = g.OpenDataset(layout::OffsetName(name)).ReadAll<std::int64_t>();
+  s.count = g.OpenDataset(layout::CountName(name)).ReadAll<std::int64_t>();
+  return s;
+}
+
+std::string BaseName(const std::string& path) {
+  return std::filesystem::path(path).filename().string();
+}
+
+}  // namespace
+
+XdmfRun XdmfRunFromFile(const std::string& h5_path) {
+  h5::File f = h5::File::OpenReadOnly(h5_path, true);
+  XdmfRun run;
+  run.h5_name = BaseName(h5_path);
+  run.times = f.root().OpenDataset("time").ReadAll<double>();
+  for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kBodies)) {
+    XdmfMesh m;
+    m.name = "body:" + layout::LeafName(g.path());
+    m.cell = XdmfCell::kTetrahedron;
+    m.cells = ReadSeries(g, "alive_elements", 4, false, 4);
+    m.points = ReadSeries(g, "xdmf_points", 3, true, 4);
+    run.meshes.push_back(std::move(m));
+  }
+  for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kBones)) {
+    XdmfMesh m;
+    m.name = "bone:" + layout::LeafName(g.path());
+    m.cell = XdmfCell::kTriangle;
+    m.cells = ReadSeries(g, "triangles", 3, false, 4);
+    m.points = ReadSeries(g, "vertices", 3, true, 8);
+    run.meshes.push_back(std::move(m));
+  }
+  for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kThreads)) {
+    XdmfMesh m;
+    m.name = "thread:" + layout::LeafName(g.path());
+    m.cell = XdmfCell::kPolyline;
+    m.cells = ReadSeries(g, "alive_segments", 2, false, 4);
+    m.points = ReadSeries(g, "xdmf_points", 3, true, 4);
+    run.meshes.push_back(std::move(m));
+  }
+  return run;
+}
+
+}  // namespace arthrosim::io

@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""Compares two run files dataset by dataset and attribute by attribute (bytes, shapes, dtypes).
+
+usage: compare_runs.py A.h5 B.h5 [--quiet]
+Wall-clock metadata (/meta attribute created_utc) is the only thing allowed to differ; the HDF5
+files themselves may differ in bytes (object addresses, timestamps). Exit 0 if equal, 1 if not.
+"""
+import sys
+
+import h5py
+import numpy as np
+
+WALL_CLOCK = {("/meta", "created_utc")}
+
+
+def items(h):
+    out = {}
+
+    def visit(name, obj):
+        out["/" + name] = obj
+    h.visititems(visit)
+    out["/"] = h
+    return out
+
+
+def attrs(obj, path):
+    return {k: v for k, v in obj.attrs.items() if (path, k) not in WALL_CLOCK}
+
+
+def same_value(a, b):
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    return type(a) is type(b) and a == b
+
+
+def main():
+    a_path, b_path = sys.argv[1], sys.argv[2]
+    quiet = "--quiet" in sys.argv
+    diffs = []
+    with h5py.File(a_path, "r") as a, h5py.File(b_path, "r") as b:
+        ia, ib = items(a), items(b)
+        if sorted(ia) != sorted(ib):
+            diffs.append(f"objects differ: {sorted(set(ia) ^ set(ib))}")
+        compared = 0
+        for path in sorted(set(ia) & set(ib)):
+            oa, ob = ia[path], ib[path]
+            if type(oa) is not type(ob):
+                diffs.append(f"{path}: group vs dataset")
+                continue
+            xa, xb = attrs(oa, path), attrs(ob, path)
+            if sorted(xa) != sorted(xb):
+                diffs.append(f"{path}: attribute names differ")
+            for k in sorted(set(xa) & set(xb)):
+                if not same_value(xa[k], xb[k]):
+                    diffs.append(f"{path}@{k}: {xa[k]!r} != {xb[k]!r}")
+            if isinstance(oa, h5py.Dataset):
+                compared += 1
+                if oa.dtype != ob.dtype or oa.shape != ob.shape:
+                    diffs.append(f"{path}: {oa.dtype}{oa.shape} vs {ob.dtype}{ob.shape}")
+                elif oa.dtype.kind == "O":  # variable-length strings
+                    if oa[()] != ob[()]:
+                        diffs.append(f"{path}: string differs")
+                elif np.asarray(oa[()]).tobytes() != np.asarray(ob[()]).tobytes():
+                    diffs.append(f"{path}: data differs")
+    if diffs:
+        if not quiet:
+            for d in diffs[:20]:
+                print("DIFF:", d)
+        return 1
+    print(f"compare_runs.py: {compared} datasets identical")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
