@@ -1,0 +1,72 @@
+#pragma once
+// Live devices over OpenIGTLink (docs/haptics.md, docs/trajectory-format.md "Live input"). A
+// background thread accepts clients on 127.0.0.1:18944 by default, applies TRANSFORM messages
+// (Slot0ToReference, Slot1ToReference, ScopeToReference) and STRING commands
+// ("slot0 instrument=grasper jaw=0.8 buttons=1"), and sends the force of each slot back as a
+// SENSOR message (Slot0Force, Slot1Force, N) after every step. Malformed, oversized and
+// out-of-order messages are logged and dropped; state survives client disconnects.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "arthrosim/input/input_source.h"
+
+namespace arthrosim::input {
+
+struct IgtlServerOptions {
+  std::string bind_address = "127.0.0.1";  ///< IPv4 address to listen on
+  int port = 18944;                        ///< 0 = ephemeral (see IgtlServer::port())
+  bool realtime = true;                    ///< Frame(t) waits until wall time reaches t
+  std::size_t max_body_bytes = 64 * 1024;  ///< larger messages are skipped
+  int max_clients = 4;
+  /// Where log lines go (default: stderr). Called from the network thread.
+  std::function<void(const std::string&)> log;
+};
+
+struct IgtlServerStats {
+  std::uint64_t applied = 0;      ///< messages that changed the device state
+  std::uint64_t dropped = 0;      ///< malformed, oversized, unknown or out of order
+  std::uint64_t connections = 0;  ///< clients accepted so far
+  std::uint64_t forces_sent = 0;  ///< SENSOR messages queued to clients
+  int clients = 0;                ///< connected now
+};
+
+class IgtlServer : public InputSource {
+ public:
+  /// Binds and starts the network thread; throws std::runtime_error if it cannot listen.
+  IgtlServer(const Model& model, IgtlServerOptions options);
+  ~IgtlServer() override;
+  IgtlServer(const IgtlServer&) = delete;
+  IgtlServer& operator=(const IgtlServer&) = delete;
+
+  /// The port actually bound.
+  int port() const;
+  /// Latest device state; buttons are OR-ed over everything received since the last Frame.
+  void Frame(std::int64_t step, double t_s, InputFrame* out) override;
+  /// Queues one SENSOR message per slot (force in N, world frame) to every client.
+  void Feedback(const FeedbackFrame& feedback) override;
+  /// True after a client sent the STRING "session end" or Stop() was called.
+  bool Finished(double t_s) const override;
+
+  IgtlServerStats stats() const;
+  /// Blocks until stats().applied >= count or timeout_s passes; returns whether reached.
+  bool WaitUntilApplied(std::uint64_t count, double timeout_s) const;
+  /// Blocks until a client is connected (or timeout); returns whether one is.
+  bool WaitForClient(double timeout_s) const;
+  /// Stops the network thread and closes all sockets (also done by the destructor).
+  void Stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Parses a command STRING into (device, key=value pairs) and applies it to *frame; returns
+/// false with *why on any unknown device, key, instrument or bad value (nothing applied).
+/// Also used by the client to build messages. Exposed for tests.
+bool ApplyCommandString(const Model& model, const std::string& text, InputFrame* frame,
+                        std::array<std::uint8_t, kToolSlots>* latched, std::string* why);
+
+}  // namespace arthrosim::input
