@@ -48,34 +48,25 @@ std::int32_t NodeIndex::Find(std::int64_t tag) const {
 
 void MeshBuilder::AddElement(int dim, const std::int32_t* nodes, const std::vector<int>& physical,
                              std::int64_t dedupe_key) {
-  const int nn = dim + 1;
-  std::int32_t index = -1;
-  bool fresh = true;
-  if (dedupe_key >= 0) {
-    std::array<std::int64_t, 6> key{dim, dedupe_key, -1, -1, -1, -1};
-    for (int k = 0; k < nn; ++k) key[2 + k] = nodes[k];
-    const std::int32_t next = static_cast<std::int32_t>(dim == 3   ? tets_.size()
-                                                        : dim == 2 ? tris_.size()
-                                                                   : edges_.size());
-    const auto [it, inserted] = seen_.emplace(key, next);
-    index = it->second;
-    fresh = inserted;
-  }
   const int first = physical.empty() ? 0 : physical.front();
-  if (fresh) {
-    if (dim == 3) {
-      index = static_cast<std::int32_t>(tets_.size());
-      tets_.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
-      tet_phys_.push_back(first);
-    } else if (dim == 2) {
-      index = static_cast<std::int32_t>(tris_.size());
-      tris_.push_back({nodes[0], nodes[1], nodes[2]});
-      tri_phys_.push_back(first);
-    } else {
-      index = static_cast<std::int32_t>(edges_.size());
-      edges_.push_back({nodes[0], nodes[1]});
-      line_phys_.push_back(first);
-    }
+  std::int32_t index = 0;
+  if (dim == 3) {
+    index = static_cast<std::int32_t>(tets_.size());
+    tets_.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
+    tet_phys_.push_back(first);
+  } else if (dim == 2) {
+    index = static_cast<std::int32_t>(tris_.size());
+    tris_.push_back({nodes[0], nodes[1], nodes[2]});
+    tri_phys_.push_back(first);
+  } else {
+    index = static_cast<std::int32_t>(edges_.size());
+    edges_.push_back({nodes[0], nodes[1]});
+    line_phys_.push_back(first);
+  }
+  if (dedupe_key >= 0) {
+    DedupeEntry e{{dim, dedupe_key, -1, -1, -1, -1}, index};
+    for (int k = 0; k <= dim; ++k) e.key[static_cast<std::size_t>(2 + k)] = nodes[k];
+    dedupe_.push_back(e);
   }
   for (const int p : physical) {
     std::vector<std::int32_t>& members = groups_[{dim, p}];
@@ -83,7 +74,60 @@ void MeshBuilder::AddElement(int dim, const std::int32_t* nodes, const std::vect
   }
 }
 
+void MeshBuilder::Dedupe() {
+  if (dedupe_.empty()) return;
+  std::sort(dedupe_.begin(), dedupe_.end(), [](const DedupeEntry& a, const DedupeEntry& b) {
+    return a.key != b.key ? a.key < b.key : a.index < b.index;
+  });
+  // target[dim][i] = index of the first identical element (i itself if unique).
+  std::vector<std::int32_t> target[4];
+  target[1].resize(edges_.size());
+  target[2].resize(tris_.size());
+  target[3].resize(tets_.size());
+  for (int d = 1; d <= 3; ++d) {
+    for (std::size_t i = 0; i < target[d].size(); ++i) target[d][i] = static_cast<std::int32_t>(i);
+  }
+  bool any = false;
+  for (std::size_t i = 1; i < dedupe_.size(); ++i) {
+    std::size_t first = i - 1;
+    while (i < dedupe_.size() && dedupe_[i].key == dedupe_[first].key) {
+      const auto d = static_cast<std::size_t>(dedupe_[i].key[0]);
+      target[d][static_cast<std::size_t>(dedupe_[i].index)] = dedupe_[first].index;
+      any = true;
+      ++i;
+    }
+  }
+  dedupe_.clear();
+  if (!any) return;
+  // Compact each dimension keeping first occurrences in file order.
+  std::vector<std::int32_t> renum[4];
+  auto compact = [&](auto& elems, std::vector<int>& phys, int d) {
+    renum[d].assign(elems.size(), -1);
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < elems.size(); ++i) {
+      if (target[d][i] != static_cast<std::int32_t>(i)) continue;
+      renum[d][i] = static_cast<std::int32_t>(out);
+      elems[out] = elems[i];
+      phys[out] = phys[i];
+      ++out;
+    }
+    for (std::size_t i = 0; i < elems.size(); ++i) {
+      renum[d][i] = renum[d][static_cast<std::size_t>(target[d][i])];
+    }
+    elems.resize(out);
+    phys.resize(out);
+  };
+  compact(edges_, line_phys_, 1);
+  compact(tris_, tri_phys_, 2);
+  compact(tets_, tet_phys_, 3);
+  for (auto& [key, members] : groups_) {
+    if (key.first < 1 || key.first > 3) continue;
+    for (std::int32_t& m : members) m = renum[key.first][static_cast<std::size_t>(m)];
+  }
+}
+
 MeshData MeshBuilder::Finish(std::string format) {
+  Dedupe();
   MeshData d;
   d.format = std::move(format);
   const Eigen::Index n = static_cast<Eigen::Index>(tags_.size());

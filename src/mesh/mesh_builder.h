@@ -62,7 +62,12 @@ class MeshBuilder {
   std::vector<int> tet_phys_, tri_phys_, line_phys_;
   std::map<std::pair<int, int>, std::vector<std::int32_t>> groups_;
   std::map<std::pair<int, int>, std::string> names_;
-  std::map<std::array<std::int64_t, 6>, std::int32_t> seen_;
+  struct DedupeEntry {
+    std::array<std::int64_t, 6> key;  // dim, entity, nodes (padded with -1)
+    std::int32_t index;               // element index within its dimension
+  };
+  std::vector<DedupeEntry> dedupe_;  // resolved once in Finish (sorting beats a map per element)
+  void Dedupe();
   std::vector<std::string> warnings_;
 };
 

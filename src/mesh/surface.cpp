@@ -73,44 +73,80 @@ BoundaryTracker::BoundaryTracker(std::vector<Tet> tets, const std::vector<std::u
     throw std::invalid_argument("BoundaryTracker: alive mask has " + std::to_string(alive.size()) +
                                 " entries for " + std::to_string(tets_.size()) + " tets");
   }
-  alive_.assign(tets_.size(), 0);
+  // Bulk build: sort all (key, tet, face) once, number faces in key order, then insert keys and
+  // boundary entries with end() hints (sorted input makes each insert O(1) amortised).
+  struct Entry {
+    FaceKey key;
+    Incidence inc;
+  };
+  std::vector<Entry> all;
+  all.reserve(tets_.size() * 4);
   for (std::size_t t = 0; t < tets_.size(); ++t) {
-    if (alive.empty() || alive[t]) Attach(static_cast<std::int32_t>(t));
+    for (int f = 0; f < 4; ++f) {
+      all.push_back({SortedKey(TetFace(tets_[t], f)),
+                     {static_cast<std::int32_t>(t), static_cast<std::int8_t>(f)}});
+    }
   }
+  std::sort(all.begin(), all.end(), [](const Entry& a, const Entry& b) {
+    return a.key != b.key ? a.key < b.key : a.inc < b.inc;
+  });
+  alive_.assign(tets_.size(), 0);
+  for (std::size_t t = 0; t < tets_.size(); ++t) alive_[t] = alive.empty() || alive[t] ? 1 : 0;
+  tet_faces_.assign(tets_.size(), {-1, -1, -1, -1});
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (i == 0 || all[i].key != all[i - 1].key) {
+      face_ids_.emplace_hint(face_ids_.end(), all[i].key,
+                             static_cast<std::int32_t>(incidences_.size()));
+      incidences_.emplace_back();
+    }
+    const auto id = static_cast<std::int32_t>(incidences_.size() - 1);
+    const Incidence inc = all[i].inc;
+    tet_faces_[static_cast<std::size_t>(inc.first)][static_cast<std::size_t>(inc.second)] = id;
+    if (alive_[static_cast<std::size_t>(inc.first)]) incidences_.back().push_back(inc);
+  }
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    for (int f = 0; f < 4; ++f) {
+      const auto& inc =
+          incidences_[static_cast<std::size_t>(tet_faces_[t][static_cast<std::size_t>(f)])];
+      if (inc.size() == 1 && inc.front().first == static_cast<std::int32_t>(t)) {
+        boundary_.emplace_hint(boundary_.end(), inc.front());
+      }
+    }
+  }
+}
+
+std::int32_t BoundaryTracker::FaceId(const FaceKey& key) {
+  const auto [it, fresh] = face_ids_.emplace(key, static_cast<std::int32_t>(incidences_.size()));
+  if (fresh) incidences_.emplace_back();
+  return it->second;
 }
 
 void BoundaryTracker::Attach(std::int32_t t) {
   alive_[static_cast<std::size_t>(t)] = 1;
   for (int f = 0; f < 4; ++f) {
-    const FaceKey key = SortedKey(TetFace(tets_[static_cast<std::size_t>(t)], f));
-    std::vector<Incidence>& inc = faces_[key];
+    const std::int32_t id = tet_faces_[static_cast<std::size_t>(t)][static_cast<std::size_t>(f)];
+    std::vector<Incidence>& inc = incidences_[static_cast<std::size_t>(id)];
     const Incidence me{t, static_cast<std::int8_t>(f)};
     inc.insert(std::lower_bound(inc.begin(), inc.end(), me), me);
-    Refresh(key);
+    Refresh(id);
   }
 }
 
 void BoundaryTracker::Detach(std::int32_t t) {
   alive_[static_cast<std::size_t>(t)] = 0;
   for (int f = 0; f < 4; ++f) {
-    const FaceKey key = SortedKey(TetFace(tets_[static_cast<std::size_t>(t)], f));
-    const auto it = faces_.find(key);
-    if (it == faces_.end()) continue;
+    const std::int32_t id = tet_faces_[static_cast<std::size_t>(t)][static_cast<std::size_t>(f)];
+    std::vector<Incidence>& inc = incidences_[static_cast<std::size_t>(id)];
     const Incidence me{t, static_cast<std::int8_t>(f)};
     boundary_.erase(me);
-    std::vector<Incidence>& inc = it->second;
     const auto pos = std::lower_bound(inc.begin(), inc.end(), me);
     if (pos != inc.end() && *pos == me) inc.erase(pos);
-    if (inc.empty()) {
-      faces_.erase(it);
-    } else {
-      Refresh(key);
-    }
+    Refresh(id);
   }
 }
 
-void BoundaryTracker::Refresh(const FaceKey& key) {
-  const std::vector<Incidence>& inc = faces_.at(key);
+void BoundaryTracker::Refresh(std::int32_t face) {
+  const std::vector<Incidence>& inc = incidences_[static_cast<std::size_t>(face)];
   // A face is boundary iff exactly one alive tet has it.
   for (const Incidence& i : inc) boundary_.erase(i);
   if (inc.size() == 1) boundary_.insert(inc.front());
@@ -136,6 +172,9 @@ std::int32_t BoundaryTracker::AddTet(const Tet& tet) {
   const auto t = static_cast<std::int32_t>(tets_.size());
   tets_.push_back(tet);
   alive_.push_back(0);
+  std::array<std::int32_t, 4> ids{};
+  for (int f = 0; f < 4; ++f) ids[static_cast<std::size_t>(f)] = FaceId(SortedKey(TetFace(tet, f)));
+  tet_faces_.push_back(ids);
   Attach(t);
   return t;
 }

@@ -39,8 +39,10 @@ std::vector<BoundaryFace> ExtractBoundary(const std::vector<Tet>& tets,
 /// The boundary as a TriMesh with the SAME node array and indices as `m` (unused nodes kept).
 TriMesh BoundaryTriMesh(const TetMesh& m, const std::vector<std::uint8_t>& alive = {});
 
-/// Incrementally maintained boundary of a changing tet set (cutting/tearing). Each update costs
-/// O(log F) per touched face; output order is deterministic (sorted by tet, face).
+/// Incrementally maintained boundary of a changing tet set (cutting/tearing). Faces get stable
+/// ids, so RemoveTet/ReviveTet touch only the tet's 4 face records plus O(log B) boundary-set
+/// updates; AddTet adds an O(log F) key lookup per face. Output order is deterministic (sorted
+/// by tet, face).
 class BoundaryTracker {
  public:
   BoundaryTracker() = default;
@@ -65,14 +67,18 @@ class BoundaryTracker {
  private:
   using FaceKey = std::array<std::int32_t, 3>;             // sorted node indices
   using Incidence = std::pair<std::int32_t, std::int8_t>;  // (tet, local face)
+  /// Face id of `key`, creating a record if it is new (only AddTet needs the key lookup).
+  std::int32_t FaceId(const FaceKey& key);
   void Attach(std::int32_t t);
   void Detach(std::int32_t t);
-  void Refresh(const FaceKey& key);
+  void Refresh(std::int32_t face);
 
   std::vector<Tet> tets_;
   std::vector<std::uint8_t> alive_;
-  std::map<FaceKey, std::vector<Incidence>> faces_;  // alive incidences per face, sorted
-  std::set<Incidence> boundary_;
+  std::vector<std::array<std::int32_t, 4>> tet_faces_;  // face id of each local face
+  std::vector<std::vector<Incidence>> incidences_;      // alive incidences per face id, sorted
+  std::map<FaceKey, std::int32_t> face_ids_;            // key -> face id
+  std::set<Incidence> boundary_;                        // faces with exactly one alive tet
 };
 
 }  // namespace arthrosim::mesh
