@@ -8,6 +8,7 @@
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/units.h"
+#include "arthrosim/input/open_source.h"
 #include "arthrosim/input/pose_math.h"
 #include "arthrosim/input/recorded_source.h"
 #include "arthrosim/input/recorder.h"
@@ -315,6 +316,27 @@ TEST(RecordReplay, RecordedFramesReplayBitForBit) {
     pressed += live[k].tools[0].buttons + live[k].tools[1].buttons;
   }
   EXPECT_GT(pressed, 0);
+}
+
+}  // namespace
+}  // namespace arthrosim::input
+
+namespace arthrosim::input {
+namespace {
+
+TEST(OpenInputSource, PicksTheSourceBySpecAndRecords) {
+  const Model m = testing::MakeTestModel();
+  SourceOptions o;
+  o.dt_s = 0.01;
+  o.record_path = testing::TempPath("open_source_record.csv");
+  auto src = OpenInputSource(
+      std::string(ARTHROSIM_SOURCE_DIR) + "/trajectories/rotator_cuff_tour.yaml", m, o);
+  InputFrame f;
+  for (int k = 0; k < 3; ++k) src->Frame(k, k * 0.01, &f);
+  src.reset();
+  EXPECT_EQ(ReadSessionCsv(o.record_path).rows.size(), 9u);
+  EXPECT_NE(dynamic_cast<IdleSource*>(OpenInputSource("none", m, SourceOptions{}).get()), nullptr);
+  EXPECT_THROW(OpenInputSource("walk.txt", m, SourceOptions{}), InputError);
 }
 
 }  // namespace
