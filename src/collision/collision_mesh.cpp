@@ -1,5 +1,7 @@
 #include "arthrosim/collision/collision_mesh.h"
 
+#include "arthrosim/mesh/surface.h"
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -9,10 +11,6 @@
 
 namespace arthrosim::collision {
 namespace {
-
-// Outward faces of a positively oriented tet (p0, p1, p2, p3): the face opposite each vertex,
-// ordered so the right-hand normal points away from that vertex.
-constexpr int kTetFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
 
 mesh::Tri Canonical(const mesh::Tri& t) {
   // Rotate (keeps orientation) so the smallest id is first.
@@ -27,35 +25,10 @@ Box ToBox(const fcl::AABBd& b) { return Box{b.min_, b.max_}; }
 
 std::vector<mesh::Tri> BoundaryTriangles(const std::vector<mesh::Tet>& tets,
                                          const std::vector<std::uint8_t>& alive) {
-  struct Face {
-    mesh::Tri key;   // sorted ids
-    mesh::Tri face;  // canonical oriented face
-  };
-  std::vector<Face> faces;
-  faces.reserve(tets.size() * 4);
-  for (std::size_t t = 0; t < tets.size(); ++t) {
-    if (t < alive.size() && !alive[t]) continue;
-    for (const auto& f : kTetFaces) {
-      Face face;
-      face.face = Canonical({tets[t][f[0]], tets[t][f[1]], tets[t][f[2]]});
-      face.key = face.face;
-      std::sort(face.key.begin(), face.key.end());
-      faces.push_back(face);
-    }
-  }
-  // Total order (key, then orientation) so equal keys are adjacent whatever the tet order.
-  std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) {
-    return a.key != b.key ? a.key < b.key : a.face < b.face;
-  });
-  std::vector<mesh::Tri> out;
-  for (std::size_t i = 0; i < faces.size();) {
-    std::size_t j = i + 1;
-    while (j < faces.size() && faces[j].key == faces[i].key) ++j;
-    if (j - i == 1) out.push_back(faces[i].face);  // shared faces are interior
-    i = j;
-  }
-  std::sort(out.begin(), out.end());
-  return out;
+  // The mesh layer's extraction orders faces by tet; the canonical form removes that order.
+  std::vector<mesh::Tri> tris;
+  for (const mesh::BoundaryFace& f : mesh::ExtractBoundary(tets, alive)) tris.push_back(f.nodes);
+  return CanonicalTriangles(std::move(tris));
 }
 
 std::vector<mesh::Tri> CanonicalTriangles(std::vector<mesh::Tri> tris) {

@@ -194,34 +194,32 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     c.weights = {1, 0, 0, 0};
     B->Add(c, Kind::kTool);
   }
-  // 2. The one surface point nearest to the tool if it is not a vertex: a sharp or small part
-  // pressing between vertices (blade edge, awl point) is still held back.
-  bool have = false;
-  ClosestPair best_touch, best_cur;
-  std::int32_t best_tri = -1;
+  // 2. Surface points between vertices: for each triangle within reach whose nearest point to
+  // the tool is inside it or on an edge, a contact there, so a sharp or small part (blade edge,
+  // awl point) cannot slip between vertices. Edge points are shared by two triangles: the first
+  // (lowest canonical triangle) keeps it.
+  thread_local std::vector<std::pair<std::int32_t, std::int32_t>> edges_done;
+  edges_done.clear();
   for (std::int32_t t : tris) {
-    const mesh::Tri& lt = e.surface.local_tris[t];
-    if (B->SoftFixed(body, e.surface.tris[t][0]) && B->SoftFixed(body, e.surface.tris[t][1]) &&
-        B->SoftFixed(body, e.surface.tris[t][2])) {
-      continue;
-    }
-    const Simplex tri = LocalTriangle(e.positions, lt);
+    const mesh::Tri& g = e.surface.tris[t];
+    if (B->SoftFixed(body, g[0]) && B->SoftFixed(body, g[1]) && B->SoftFixed(body, g[2])) continue;
+    const Simplex tri = LocalTriangle(e.positions, e.surface.local_tris[t]);
     ClosestPair touch;
     if (!FirstTouch(sw, reach, tri, &touch)) continue;
     const ClosestPair cur = Closest(now, tri);
-    if (!have || cur.dist2 < best_cur.dist2) {
-      have = true;
-      best_touch = touch;
-      best_cur = cur;
-      best_tri = t;
+    const auto& w = cur.wb;
+    const int zeros = (w[0] <= 0) + (w[1] <= 0) + (w[2] <= 0);
+    if (zeros >= 2) continue;  // at a vertex: the vertex contact covers it
+    if (zeros == 1) {
+      const int k = w[0] <= 0 ? 0 : (w[1] <= 0 ? 1 : 2);
+      const std::pair<std::int32_t, std::int32_t> edge{std::min(g[(k + 1) % 3], g[(k + 2) % 3]),
+                                                       std::max(g[(k + 1) % 3], g[(k + 2) % 3])};
+      if (std::find(edges_done.begin(), edges_done.end(), edge) != edges_done.end()) continue;
+      edges_done.push_back(edge);
     }
-  }
-  if (have && std::max({best_cur.wb[0], best_cur.wb[1], best_cur.wb[2]}) < 1 - 1e-9) {
-    PointContact c =
-        make(best_touch, best_cur, -FaceNormal(e.positions, e.surface.local_tris[best_tri]));
-    const mesh::Tri& g = e.surface.tris[best_tri];
+    PointContact c = make(touch, cur, -FaceNormal(e.positions, e.surface.local_tris[t]));
     c.nodes = {g[0], g[1], g[2], -1};
-    c.weights = {best_cur.wb[0], best_cur.wb[1], best_cur.wb[2], 0};
+    c.weights = {w[0], w[1], w[2], 0};
     B->Add(c, Kind::kTool);
   }
 }
@@ -288,11 +286,35 @@ void ToolBone(Builder* B, int slot, const Sweep& sw, CollisionWorld::BoneEntry& 
 
 // ---- thread against a surface (tissue: both sides; bone: thread side) ---------------------
 
-struct SegmentHit {
-  bool pierced = false;
-  bool contact = false;
-  Nearest nearest;
-};
+// A thread point (node or segment interior) near a surface: thread-side contact, and for soft
+// tissue the reaction contact on the surface point.
+void ThreadSurfaceContact(Builder* B, int thread, PointContact c, const Nearest& n, Kind obstacle,
+                          int obstacle_index, const Surface& s, double rt, double stiffness) {
+  const CollisionParams& P = B->params;
+  const Vec3 normal =
+      n.Signed() > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+  c.normal = normal;
+  c.offset_mm = normal.dot(n.pair.pb) + rt + P.contact_distance_mm;
+  c.stiffness_n_per_mm = stiffness;
+  c.obstacle_id = obstacle_index;
+  B->Add(c, obstacle);
+  if (obstacle != Kind::kSoftBody) return;
+  const mesh::Tri& g = s.tris[n.tri];
+  if (B->SoftFixed(obstacle_index, g[0]) && B->SoftFixed(obstacle_index, g[1]) &&
+      B->SoftFixed(obstacle_index, g[2])) {
+    return;
+  }
+  PointContact t;
+  t.target = PointContact::Target::kSoftBody;
+  t.index = obstacle_index;
+  t.nodes = {g[0], g[1], g[2], -1};
+  t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
+  t.normal = -normal;
+  t.offset_mm = -normal.dot(n.pair.pa) + rt + P.contact_distance_mm;
+  t.stiffness_n_per_mm = stiffness;
+  t.obstacle_id = thread;
+  B->Add(t, Kind::kThread);
+}
 
 void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, const Surface& s,
                    const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness) {
@@ -303,74 +325,80 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
   if (bvh.empty()) return;
   const Box bounds = bvh.Bounds();
   const double reach = std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
+  auto in_contact = [&](const Nearest& n) {
+    const double sd = n.Signed();
+    return sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
+  };
   const std::size_t ne = tm.initial.edges.size();
-  thread_local std::vector<SegmentHit> hits;
+  const Eigen::Index nn = x.cols();
   thread_local std::vector<std::int32_t> tris;
-  hits.assign(ne, SegmentHit{});
+  thread_local std::vector<Nearest> seg;
+  thread_local std::vector<std::uint8_t> pierced, blocked_edge, blocked_node, near_node;
+  seg.assign(ne, Nearest{});
+  pierced.assign(ne, 0);
+  blocked_edge.assign(ne, 0);
+  blocked_node.assign(static_cast<std::size_t>(nn), 0);
+  near_node.assign(static_cast<std::size_t>(nn), 0);
+  // Segments: piercings (a stitch passes through the surface there) and candidates.
   for (std::size_t i = 0; i < ne; ++i) {
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
     if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
-    const Simplex seg = SegmentSimplex(x.col(a), x.col(b));
-    const Box q = SimplexBox(seg).Inflated(reach);
+    const Simplex sg = SegmentSimplex(x.col(a), x.col(b));
+    const Box q = SimplexBox(sg).Inflated(reach);
     if (!q.Overlaps(bounds)) continue;
     tris.clear();
     bvh.Query(q, &tris);
     if (tris.empty()) continue;
-    SegmentHit& h = hits[i];
-    h.nearest = NearestOnSurface(seg, tris, pos, s.local_tris);
-    if (!h.nearest.found) continue;
-    if (h.nearest.pair.dist2 == 0) {
-      h.pierced = true;  // a stitch passes through here
-      continue;
-    }
-    const double sd = h.nearest.Signed();
-    h.contact = sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
+    seg[i] = NearestOnSurface(sg, tris, pos, s.local_tris);
+    if (!seg[i].found) continue;
+    near_node[a] = near_node[b] = 1;
+    if (seg[i].pair.dist2 == 0) pierced[i] = 1;
   }
-  std::int32_t last_single = -1;
+  // Next to a piercing the thread enters the tissue on purpose: no contacts there.
   for (std::size_t i = 0; i < ne; ++i) {
-    const SegmentHit& h = hits[i];
-    // Next to a piercing the thread is entering the tissue on purpose.
-    if (!h.contact || (i > 0 && hits[i - 1].pierced) || (i + 1 < ne && hits[i + 1].pierced)) {
+    if (!pierced[i]) continue;
+    for (std::size_t j = i > 0 ? i - 1 : 0; j <= i + 1 && j < ne; ++j) blocked_edge[j] = 1;
+  }
+  for (std::size_t i = 0; i < ne; ++i) {
+    if (blocked_edge[i])
+      blocked_node[tm.initial.edges[i][0]] = blocked_node[tm.initial.edges[i][1]] = 1;
+  }
+  // Nodes.
+  for (Eigen::Index v = 0; v < nn; ++v) {
+    const std::int32_t node = static_cast<std::int32_t>(v);
+    if (!near_node[v] || blocked_node[v] || !B->ThreadAlive(thread, node) ||
+        B->ThreadFixed(thread, node)) {
       continue;
     }
+    const Simplex p = PointSimplex(x.col(v));
+    tris.clear();
+    bvh.Query(SimplexBox(p).Inflated(reach), &tris);
+    const Nearest n = NearestOnSurface(p, tris, pos, s.local_tris);
+    if (!n.found || !in_contact(n)) continue;
+    ThreadSurfaceContact(B, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
+                         obstacle_index, s, rt, stiffness);
+  }
+  // Segment interiors (a thread over an edge of the surface).
+  for (std::size_t i = 0; i < ne; ++i) {
+    const Nearest& n = seg[i];
+    const double u = n.pair.wa[1];
+    if (!n.found || blocked_edge[i] || u <= 1e-9 || u >= 1 - 1e-9 || !in_contact(n)) continue;
+    // Only where the segment dips below its end nodes' distances (a real interior minimum).
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
-    const Nearest& n = h.nearest;
-    const Vec3 normal =
-        n.Signed() > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
-    PointContact c = ThreadPoint(thread, a, b, n.pair.wa[1]);
-    bool thread_side = true;
-    if (c.nodes[1] < 0) {
-      if (c.nodes[0] == last_single) thread_side = false;
-      last_single = c.nodes[0];
-    }
-    if (B->ThreadFixed(thread, c.nodes[0]) &&
-        (c.nodes[1] < 0 || B->ThreadFixed(thread, c.nodes[1]))) {
-      thread_side = false;
-    }
-    if (thread_side) {
-      c.normal = normal;
-      c.offset_mm = normal.dot(n.pair.pb) + rt + P.contact_distance_mm;
-      c.stiffness_n_per_mm = stiffness;
-      c.obstacle_id = obstacle_index;
-      B->Add(c, obstacle);
-    }
-    if (obstacle == Kind::kSoftBody) {
-      const mesh::Tri& g = s.tris[n.tri];
-      if (B->SoftFixed(obstacle_index, g[0]) && B->SoftFixed(obstacle_index, g[1]) &&
-          B->SoftFixed(obstacle_index, g[2])) {
-        continue;
-      }
-      PointContact t;
-      t.target = PointContact::Target::kSoftBody;
-      t.index = obstacle_index;
-      t.nodes = {g[0], g[1], g[2], -1};
-      t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
-      t.normal = -normal;
-      t.offset_mm = -normal.dot(n.pair.pa) + rt + P.contact_distance_mm;
-      t.stiffness_n_per_mm = stiffness;
-      t.obstacle_id = thread;
-      B->Add(t, Kind::kThread);
-    }
+    if (B->ThreadFixed(thread, a) && B->ThreadFixed(thread, b)) continue;
+    const double da =
+        std::sqrt(Closest(PointSimplex(x.col(a)),
+                          TriangleSimplex(pos[s.local_tris[n.tri][0]], pos[s.local_tris[n.tri][1]],
+                                          pos[s.local_tris[n.tri][2]]))
+                      .dist2);
+    const double db =
+        std::sqrt(Closest(PointSimplex(x.col(b)),
+                          TriangleSimplex(pos[s.local_tris[n.tri][0]], pos[s.local_tris[n.tri][1]],
+                                          pos[s.local_tris[n.tri][2]]))
+                      .dist2);
+    if (n.dist >= std::min(da, db) - 1e-9) continue;
+    ThreadSurfaceContact(B, thread, ThreadPoint(thread, a, b, u), n, obstacle, obstacle_index, s,
+                         rt, stiffness);
   }
 }
 
