@@ -1,0 +1,15 @@
+#pragma once
+// Throughput figures for `arthrosim bench --render`.
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+
+namespace arthrosim::render {
+
+/// Frames per second of BuildScene + Render (scope view, overlay on) at width x height over
+/// `frames` frames after two warm-up frames, wall clock; with_encoding adds the ffmpeg encode
+/// (x264 veryfast, 2 threads) of every frame to a temporary MP4 that is deleted afterwards.
+/// @throws RenderError if the renderer or ffmpeg is unavailable.
+double MeasureRenderFps(const Model& model, const State& state, int width, int height, int frames,
+                        bool with_encoding);
+
+}  // namespace arthrosim::render

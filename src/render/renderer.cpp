@@ -1,0 +1,437 @@
+#include "arthrosim/render/renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <stdexcept>
+#include <vector>
+
+#include "gl_api.h"
+#include "overlay.h"
+#include "shaders.h"
+#include "text.h"
+
+namespace arthrosim::render {
+namespace {
+
+using Mat4 = Eigen::Matrix4d;
+
+// Inside the joint with nothing near the lens: dark, reddish saline.
+constexpr float kFluidColor[3] = {0.05f, 0.03f, 0.03f};
+constexpr float kOverviewBackground[3] = {0.12f, 0.13f, 0.15f};
+constexpr float kScopeAmbient = 0.05f;
+constexpr float kOverviewAmbient = 0.18f;
+// The rectilinear pass cannot reach 90 deg off axis; wider lenses are clamped.
+constexpr double kMaxHalfFovRad = 80.0 * 3.14159265358979323846 / 180.0;
+
+Mat4 LookAt(const Vec3& eye, const Vec3& forward, const Vec3& up) {
+  const Vec3 f = forward.normalized();
+  const Vec3 s = f.cross(up).normalized();
+  const Vec3 u = s.cross(f);
+  Mat4 m = Mat4::Identity();
+  m.block<1, 3>(0, 0) = s.transpose();
+  m.block<1, 3>(1, 0) = u.transpose();
+  m.block<1, 3>(2, 0) = -f.transpose();
+  m(0, 3) = -s.dot(eye);
+  m(1, 3) = -u.dot(eye);
+  m(2, 3) = f.dot(eye);
+  return m;
+}
+
+Mat4 Perspective(double tan_half_y, double aspect, double n, double f) {
+  Mat4 m = Mat4::Zero();
+  m(0, 0) = 1.0 / (tan_half_y * aspect);
+  m(1, 1) = 1.0 / tan_half_y;
+  m(2, 2) = -(f + n) / (f - n);
+  m(2, 3) = -2.0 * f * n / (f - n);
+  m(3, 2) = -1.0;
+  return m;
+}
+
+GLuint Compile(const GlApi& gl, GLenum type, const char* source) {
+  const GLuint s = gl.CreateShader(type);
+  gl.ShaderSource(s, 1, &source, nullptr);
+  gl.CompileShader(s);
+  GLint ok = 0;
+  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
+    throw RenderError(std::string("GLSL compile failed: ") + log);
+  }
+  return s;
+}
+
+GLuint Link(const GlApi& gl, const char* vs, const char* fs) {
+  const GLuint v = Compile(gl, GL_VERTEX_SHADER, vs), f = Compile(gl, GL_FRAGMENT_SHADER, fs);
+  const GLuint p = gl.CreateProgram();
+  gl.AttachShader(p, v);
+  gl.AttachShader(p, f);
+  gl.LinkProgram(p);
+  gl.DeleteShader(v);
+  gl.DeleteShader(f);
+  GLint ok = 0;
+  gl.GetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    gl.GetProgramInfoLog(p, sizeof log, nullptr, log);
+    throw RenderError(std::string("GLSL link failed: ") + log);
+  }
+  return p;
+}
+
+struct Viewport {
+  int x = 0, y = 0, w = 0, h = 0;
+};
+
+}  // namespace
+
+View ParseView(const std::string& name) {
+  if (name == "scope") return View::kScope;
+  if (name == "overview") return View::kOverview;
+  if (name == "both") return View::kBoth;
+  throw std::invalid_argument("view '" + name + "': expected scope, overview or both");
+}
+
+const char* ViewName(View view) {
+  switch (view) {
+    case View::kScope:
+      return "scope";
+    case View::kOverview:
+      return "overview";
+    case View::kBoth:
+      return "both";
+  }
+  return "?";
+}
+
+struct Renderer::Impl {
+  OSMesaContext ctx = nullptr;
+  std::vector<unsigned char> buffer;  // OSMesa colour buffer, RGBA, bottom-up
+  int buf_w = 0, buf_h = 0;
+  GlApi gl;
+  GLuint mesh_prog = 0, post_prog = 0;
+  GLuint vao = 0, vbo = 0, ebo = 0, post_vao = 0;
+  GLuint fbo = 0, fbo_tex = 0, fbo_depth = 0;
+  int fbo_size = 0;
+  struct {
+    GLint view_proj, base, spec, shininess, metal, pattern, eye, light, ref2, spot_dir, spot,
+        ambient;
+  } mu{};
+  struct {
+    GLint tex, center, radius, theta_max, tan_max, k;
+  } pu{};
+  std::unique_ptr<Font> font;
+  // one draw range per scene mesh in the shared buffers
+  struct Range {
+    GLsizei count;
+    std::size_t first;
+    GLint base_vertex;
+  };
+  std::vector<Range> ranges;
+  std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<unsigned char> readback;
+
+  void MakeCurrent(int w, int h) {
+    if (w != buf_w || h != buf_h) {
+      buffer.assign(static_cast<std::size_t>(4) * w * h, 0);
+      buf_w = w;
+      buf_h = h;
+    }
+    if (!OSMesaMakeCurrent(ctx, buffer.data(), GL_UNSIGNED_BYTE, w, h)) {
+      throw RenderError("OSMesaMakeCurrent failed");
+    }
+  }
+
+  void Upload(const Scene& scene) {
+    vertices.clear();
+    indices.clear();
+    ranges.clear();
+    for (const SceneMesh& m : scene.meshes) {
+      ranges.push_back({static_cast<GLsizei>(m.indices.size()), indices.size(),
+                        static_cast<GLint>(vertices.size())});
+      vertices.insert(vertices.end(), m.vertices.begin(), m.vertices.end());
+      indices.insert(indices.end(), m.indices.begin(), m.indices.end());
+    }
+    gl.BindVertexArray(vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, vbo);
+    gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(Vertex)),
+                  vertices.data(), GL_STREAM_DRAW);
+    gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, ebo);
+    gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
+                  static_cast<GLsizeiptr>(indices.size() * sizeof(std::uint32_t)), indices.data(),
+                  GL_STREAM_DRAW);
+  }
+
+  void EnsureFbo(int size) {
+    if (size == fbo_size) return;
+    if (fbo == 0) {
+      gl.GenFramebuffers(1, &fbo);
+      glGenTextures(1, &fbo_tex);
+      gl.GenRenderbuffers(1, &fbo_depth);
+    }
+    glBindTexture(GL_TEXTURE_2D, fbo_tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, size, size, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    gl.BindRenderbuffer(GL_RENDERBUFFER, fbo_depth);
+    gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, size, size);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, fbo_tex, 0);
+    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, fbo_depth);
+    if (gl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+      throw RenderError("scope framebuffer incomplete");
+    }
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    fbo_size = size;
+  }
+
+  // Draws the meshes (scope view: those visible in the scope) with one camera and light.
+  void DrawMeshes(const Scene& scene, const Mat4& view_proj, const Vec3& eye, bool scope_light,
+                  const Vec3& spot_dir, double ref_mm) {
+    gl.UseProgram(mesh_prog);
+    const Eigen::Matrix4f vp = view_proj.cast<float>();
+    gl.UniformMatrix4fv(mu.view_proj, 1, GL_FALSE, vp.data());
+    gl.Uniform3f(mu.eye, float(eye.x()), float(eye.y()), float(eye.z()));
+    gl.Uniform3f(mu.light, float(eye.x()), float(eye.y()), float(eye.z()));
+    gl.Uniform1f(mu.ref2, scope_light ? float(ref_mm * ref_mm) : 0.0f);
+    gl.Uniform3f(mu.spot_dir, float(spot_dir.x()), float(spot_dir.y()), float(spot_dir.z()));
+    gl.Uniform1i(mu.spot, scope_light ? 1 : 0);
+    gl.Uniform1f(mu.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
+    gl.BindVertexArray(vao);
+    for (std::size_t i = 0; i < scene.meshes.size(); ++i) {
+      const SceneMesh& m = scene.meshes[i];
+      if (ranges[i].count == 0 || (scope_light && !m.visible_in_scope)) continue;
+      const SceneMaterial& mat = m.material;
+      gl.Uniform3f(mu.base, mat.base_color[0], mat.base_color[1], mat.base_color[2]);
+      gl.Uniform1f(mu.spec, mat.specular);
+      gl.Uniform1f(mu.shininess, mat.shininess);
+      gl.Uniform1f(mu.metal, mat.metallic);
+      gl.Uniform1i(mu.pattern, mat.pattern);
+      gl.DrawElementsBaseVertex(
+          GL_TRIANGLES, ranges[i].count, GL_UNSIGNED_INT,
+          reinterpret_cast<const void*>(ranges[i].first * sizeof(std::uint32_t)),
+          ranges[i].base_vertex);
+    }
+  }
+
+  void RenderScope(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
+    const double half = std::min(0.5 * scene.scope.fov_rad, kMaxHalfFovRad);
+    const double tan_max = std::tan(half);
+    const int diameter =
+        std::max(2, static_cast<int>(std::lround(spec.field_stop * std::min(vp.w, vp.h))));
+    // texture resolution matching the output at the image centre, where the fisheye
+    // magnifies most relative to the rectilinear render
+    const double centre_gain = (1.0 - spec.distortion) + spec.distortion * tan_max / half;
+    const int tex = std::max(2, static_cast<int>(std::ceil(diameter * centre_gain)));
+    EnsureFbo(tex);
+
+    // pass 1: rectilinear render into the square texture
+    const ViewFrame f = ScopeViewFrame(scene.scope);
+    const Mat4 view_proj = Perspective(tan_max, 1.0, scene.scope.near_mm, scene.scope.far_mm) *
+                           LookAt(f.eye, f.forward, f.up);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glViewport(0, 0, tex, tex);
+    glDisable(GL_SCISSOR_TEST);
+    glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    DrawMeshes(scene, view_proj, f.eye, true, f.forward, spec.light_ref_mm);
+
+    // pass 2: lens distortion and field stop into the output viewport
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(vp.x, vp.y, vp.w, vp.h);
+    glDisable(GL_DEPTH_TEST);
+    gl.UseProgram(post_prog);
+    gl.ActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, fbo_tex);
+    gl.Uniform1i(pu.tex, 0);
+    gl.Uniform2f(pu.center, float(vp.x + 0.5 * vp.w), float(vp.y + 0.5 * vp.h));
+    gl.Uniform1f(pu.radius, float(0.5 * diameter));
+    gl.Uniform1f(pu.theta_max, float(half));
+    gl.Uniform1f(pu.tan_max, float(tan_max));
+    gl.Uniform1f(pu.k, float(spec.distortion));
+    gl.BindVertexArray(post_vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
+  void RenderOverview(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
+    const Vec3 centre = 0.5 * (scene.bounds_min + scene.bounds_max);
+    const double radius = std::max(1.0, 0.5 * (scene.bounds_max - scene.bounds_min).norm());
+    // look across the scope shaft (so the scope and instruments are seen from the side, not
+    // along their axes), from the scope's side of the joint and slightly from above (+z up)
+    const Vec3 shaft = scene.scope.pose.orientation.normalized() * Vec3::UnitZ();
+    Vec3 dir = shaft.cross(Vec3::UnitZ());
+    dir = dir.norm() > 1e-3 ? Vec3(dir.normalized()) : Vec3(1, 0, 0);
+    if (dir.dot(scene.scope.pose.position_mm - centre) < 0) dir = -dir;
+    dir = (dir + Vec3(0, 0, 0.6)).normalized();
+    const Vec3 up = std::abs(dir.z()) > 0.99 ? Vec3::UnitY() : Vec3::UnitZ();
+    const double aspect = double(vp.w) / vp.h;
+    const double tan_y = std::tan(0.5 * spec.overview_fov_deg * 3.14159265358979323846 / 180);
+    const double tan_min = std::min(tan_y, tan_y * aspect);
+    const double dist = 1.1 * radius / std::sin(std::atan(tan_min));
+    const Vec3 eye = centre + dist * dir;
+    const Mat4 view_proj =
+        Perspective(tan_y, aspect, 0.05 * dist, dist + 4 * radius + 200) * LookAt(eye, -dir, up);
+    glViewport(vp.x, vp.y, vp.w, vp.h);
+    glScissor(vp.x, vp.y, vp.w, vp.h);
+    glEnable(GL_SCISSOR_TEST);
+    glClearColor(kOverviewBackground[0], kOverviewBackground[1], kOverviewBackground[2], 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glDisable(GL_SCISSOR_TEST);
+    glEnable(GL_DEPTH_TEST);
+    DrawMeshes(scene, view_proj, eye, false, -dir, 0.0);
+  }
+};
+
+std::string Renderer::DefaultFontPath() {
+  return "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+}
+
+Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>()) {
+  Impl& s = *impl_;
+  s.font = std::make_unique<Font>(font_path);
+  const int attribs[] = {OSMESA_FORMAT,
+                         OSMESA_RGBA,
+                         OSMESA_DEPTH_BITS,
+                         24,
+                         OSMESA_STENCIL_BITS,
+                         0,
+                         OSMESA_PROFILE,
+                         OSMESA_CORE_PROFILE,
+                         OSMESA_CONTEXT_MAJOR_VERSION,
+                         3,
+                         OSMESA_CONTEXT_MINOR_VERSION,
+                         3,
+                         0};
+  s.ctx = OSMesaCreateContextAttribs(attribs, nullptr);
+  if (s.ctx == nullptr) {
+    throw RenderError(
+        "OSMesa could not create an OpenGL 3.3 core context (Debian package libosmesa6)");
+  }
+  s.MakeCurrent(16, 16);
+  if (const char* missing = s.gl.Load()) {
+    throw RenderError(std::string("OSMesa lacks the OpenGL entry point ") + missing);
+  }
+  const GlApi& gl = s.gl;
+  s.mesh_prog = Link(gl, shaders::kMeshVertex, shaders::kMeshFragment);
+  s.post_prog = Link(gl, shaders::kPostVertex, shaders::kPostFragment);
+  auto u = [&](GLuint p, const char* name) { return gl.GetUniformLocation(p, name); };
+  s.mu = {u(s.mesh_prog, "u_view_proj"), u(s.mesh_prog, "u_base"),  u(s.mesh_prog, "u_spec"),
+          u(s.mesh_prog, "u_shininess"), u(s.mesh_prog, "u_metal"), u(s.mesh_prog, "u_pattern"),
+          u(s.mesh_prog, "u_eye"),       u(s.mesh_prog, "u_light"), u(s.mesh_prog, "u_ref2"),
+          u(s.mesh_prog, "u_spot_dir"),  u(s.mesh_prog, "u_spot"),  u(s.mesh_prog, "u_ambient")};
+  s.pu = {u(s.post_prog, "u_tex"),       u(s.post_prog, "u_center"),  u(s.post_prog, "u_radius"),
+          u(s.post_prog, "u_theta_max"), u(s.post_prog, "u_tan_max"), u(s.post_prog, "u_k")};
+
+  // vertex layout of render::Vertex
+  gl.GenVertexArrays(1, &s.vao);
+  gl.GenVertexArrays(1, &s.post_vao);
+  gl.GenBuffers(1, &s.vbo);
+  gl.GenBuffers(1, &s.ebo);
+  gl.BindVertexArray(s.vao);
+  gl.BindBuffer(GL_ARRAY_BUFFER, s.vbo);
+  gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, s.ebo);
+  const GLsizei stride = sizeof(Vertex);
+  gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride,
+                         reinterpret_cast<const void*>(offsetof(Vertex, pos)));
+  gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
+                         reinterpret_cast<const void*>(offsetof(Vertex, normal)));
+  gl.VertexAttribPointer(2, 2, GL_FLOAT, GL_FALSE, stride,
+                         reinterpret_cast<const void*>(offsetof(Vertex, uv)));
+  gl.VertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, stride,
+                         reinterpret_cast<const void*>(offsetof(Vertex, rough)));
+  for (GLuint i = 0; i < 4; ++i) gl.EnableVertexAttribArray(i);
+  gl.BindVertexArray(0);
+  if (glGetError() != GL_NO_ERROR) throw RenderError("OpenGL error while setting up the renderer");
+}
+
+Renderer::~Renderer() {
+  Impl& s = *impl_;
+  if (s.ctx == nullptr) return;
+  if (s.buf_w > 0 &&
+      OSMesaMakeCurrent(s.ctx, s.buffer.data(), GL_UNSIGNED_BYTE, s.buf_w, s.buf_h)) {
+    const GlApi& gl = s.gl;
+    if (gl.DeleteProgram != nullptr) {
+      gl.DeleteProgram(s.mesh_prog);
+      gl.DeleteProgram(s.post_prog);
+      gl.DeleteVertexArrays(1, &s.vao);
+      gl.DeleteVertexArrays(1, &s.post_vao);
+      gl.DeleteBuffers(1, &s.vbo);
+      gl.DeleteBuffers(1, &s.ebo);
+      if (s.fbo != 0) {
+        gl.DeleteFramebuffers(1, &s.fbo);
+        gl.DeleteRenderbuffers(1, &s.fbo_depth);
+        glDeleteTextures(1, &s.fbo_tex);
+      }
+    }
+  }
+  OSMesaDestroyContext(s.ctx);
+}
+
+std::string Renderer::GlRenderer() const {
+  const GLubyte* r = glGetString(GL_RENDERER);
+  return r != nullptr ? reinterpret_cast<const char*>(r) : "";
+}
+
+void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
+  if (spec.width < 16 || spec.height < 16 || spec.width > 8192 || spec.height > 8192) {
+    throw std::invalid_argument("render size " + std::to_string(spec.width) + "x" +
+                                std::to_string(spec.height) + ": expected 16..8192 pixels");
+  }
+  if (!(spec.field_stop > 0 && spec.field_stop <= 1) ||
+      !(spec.distortion >= 0 && spec.distortion <= 1) || !(spec.light_ref_mm > 0) ||
+      !(spec.overview_fov_deg > 1 && spec.overview_fov_deg < 170)) {
+    throw std::invalid_argument(
+        "ViewSpec: expected field_stop in (0,1], distortion in [0,1], light_ref_mm > 0, "
+        "overview_fov_deg in (1,170)");
+  }
+  Impl& s = *impl_;
+  const int w = spec.width, h = spec.height;
+  s.MakeCurrent(w, h);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glDisable(GL_CULL_FACE);
+  glDepthFunc(GL_LESS);
+  s.gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+  glViewport(0, 0, w, h);
+  glDisable(GL_SCISSOR_TEST);
+  glClearColor(0, 0, 0, 1);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  s.Upload(scene);
+
+  switch (spec.view) {
+    case View::kScope:
+      s.RenderScope(scene, spec, {0, 0, w, h});
+      break;
+    case View::kOverview:
+      s.RenderOverview(scene, spec, {0, 0, w, h});
+      break;
+    case View::kBoth:
+      s.RenderScope(scene, spec, {0, 0, w / 2, h});
+      s.RenderOverview(scene, spec, {w / 2, 0, w - w / 2, h});
+      break;
+  }
+
+  // read back bottom-up RGBA, store top-down RGB
+  s.readback.resize(static_cast<std::size_t>(4) * w * h);
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, s.readback.data());
+  if (const GLenum err = glGetError(); err != GL_NO_ERROR) {
+    throw RenderError("OpenGL error " + std::to_string(err) + " while rendering");
+  }
+  out->Resize(w, h);
+  for (int y = 0; y < h; ++y) {
+    const unsigned char* src = s.readback.data() + static_cast<std::size_t>(4) * w * (h - 1 - y);
+    std::uint8_t* dst = out->At(0, y);
+    for (int x = 0; x < w; ++x) {
+      dst[3 * x] = src[4 * x];
+      dst[3 * x + 1] = src[4 * x + 1];
+      dst[3 * x + 2] = src[4 * x + 2];
+    }
+  }
+  if (spec.overlay && scene.overlay.enabled) DrawOverlay(scene.overlay, s.font.get(), out);
+}
+
+}  // namespace arthrosim::render

@@ -1,0 +1,271 @@
+#include "arthrosim/render/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "instrument_shapes.h"
+#include "mesh_builder.h"
+#include "soft_boundary.h"
+
+namespace arthrosim::render {
+namespace {
+
+// Depth (mm) of bone removal at which a burred vertex is fully rough.
+constexpr double kFullRoughDepthMm = 0.5;
+constexpr int kThreadSides = 8;
+
+SceneMaterial Make(float r, float g, float b, float specular, float shininess, float metallic,
+                   int pattern) {
+  SceneMaterial m;
+  m.base_color[0] = r;
+  m.base_color[1] = g;
+  m.base_color[2] = b;
+  m.specular = specular;
+  m.shininess = shininess;
+  m.metallic = metallic;
+  m.pattern = pattern;
+  return m;
+}
+
+bool Contains(const std::string& s, const char* what) { return s.find(what) != std::string::npos; }
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+Vertex MakeVertex(const Vec3& p) {
+  Vertex v{};
+  for (int k = 0; k < 3; ++k) v.pos[k] = static_cast<float>(p[k]);
+  return v;
+}
+
+// Indexed triangles over a subset of `x`'s columns: only referenced nodes become vertices.
+SceneMesh TriangleMesh(const Points& x, const std::vector<mesh::Tri>& tris,
+                       const std::string& what) {
+  SceneMesh mesh;
+  std::vector<std::int32_t> remap(x.cols(), -1);
+  mesh.indices.reserve(3 * tris.size());
+  for (const mesh::Tri& t : tris) {
+    for (std::int32_t n : t) {
+      if (n < 0 || n >= x.cols()) {
+        throw std::invalid_argument(what + ": triangle references node " + std::to_string(n) +
+                                    " of " + std::to_string(x.cols()));
+      }
+      if (remap[n] < 0) {
+        remap[n] = static_cast<std::int32_t>(mesh.vertices.size());
+        mesh.vertices.push_back(MakeVertex(x.col(n)));
+      }
+      mesh.indices.push_back(static_cast<std::uint32_t>(remap[n]));
+    }
+  }
+  return mesh;
+}
+
+void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
+  for (std::size_t i = 0; i < model.soft_bodies.size(); ++i) {
+    const SoftBodyState& s = state.soft_bodies[i];
+    if (!s.tet_alive.empty() && s.tet_alive.size() != s.tets.size()) {
+      throw std::invalid_argument("soft body '" + model.soft_bodies[i].name +
+                                  "': tet_alive size differs from tets");
+    }
+    SceneMesh mesh = TriangleMesh(s.x, AliveBoundary(s.tets, s.tet_alive),
+                                  "soft body '" + model.soft_bodies[i].name + "'");
+    mesh.name = model.soft_bodies[i].name;
+    mesh.layer = MeshLayer::kSoftTissue;
+    mesh.material = TissueMaterial(mesh.name, false);
+    ComputeVertexNormals(&mesh);
+    scene->meshes.push_back(std::move(mesh));
+  }
+}
+
+void AppendBones(const Model& model, const State& state, Scene* scene) {
+  for (std::size_t i = 0; i < model.bones.size(); ++i) {
+    const mesh::TriMesh& now = state.bones[i].surface;
+    const mesh::TriMesh& initial = model.bones[i].surface;
+    SceneMesh mesh = TriangleMesh(now.nodes, now.tris, "bone '" + model.bones[i].name + "'");
+    mesh.name = model.bones[i].name;
+    mesh.layer = MeshLayer::kBone;
+    mesh.material = TissueMaterial(mesh.name, true);
+    ComputeVertexNormals(&mesh);
+    // burred areas: how far a vertex moved from its initial place (same topology only)
+    if (now.nodes.cols() == initial.nodes.cols()) {
+      std::vector<std::int32_t> remap(now.nodes.cols(), -1);
+      std::int32_t next = 0;
+      for (const mesh::Tri& t : now.tris) {
+        for (std::int32_t n : t) {
+          if (remap[n] < 0) remap[n] = next++;
+        }
+      }
+      for (Eigen::Index n = 0; n < now.nodes.cols(); ++n) {
+        if (remap[n] < 0) continue;
+        const double depth = (now.nodes.col(n) - initial.nodes.col(n)).norm();
+        mesh.vertices[remap[n]].rough =
+            static_cast<float>(std::min(1.0, depth / kFullRoughDepthMm));
+      }
+    }
+    scene->meshes.push_back(std::move(mesh));
+  }
+}
+
+void AppendThreads(const Model& model, const State& state, Scene* scene) {
+  for (std::size_t i = 0; i < model.threads.size(); ++i) {
+    const ThreadState& t = state.threads[i];
+    SceneMesh mesh;
+    mesh.name = model.threads[i].name;
+    mesh.layer = MeshLayer::kThread;
+    // No. 2 FiberWire: blue braid with white tracer
+    mesh.material = Make(0.10f, 0.22f, 0.75f, 0.35f, 40.0f, 0.0f, 1);
+    MeshBuilder b(&mesh, Eigen::Isometry3d::Identity());
+    const double radius = 0.5 * model.threads[i].diameter_mm;
+    // one tube per run of consecutive alive nodes
+    std::vector<Vec3> run;
+    auto flush = [&] {
+      if (run.size() >= 2) b.Tube(run, radius, kThreadSides);
+      run.clear();
+    };
+    for (Eigen::Index n = 0; n < t.x.cols(); ++n) {
+      const bool alive = t.node_alive.empty() || t.node_alive[n];
+      if (alive) {
+        run.push_back(t.x.col(n));
+      } else {
+        flush();
+      }
+    }
+    flush();
+    scene->meshes.push_back(std::move(mesh));
+  }
+}
+
+void AppendTools(const Model& model, const State& state, Scene* scene) {
+  for (int slot = 0; slot < kToolSlots; ++slot) {
+    const ToolState& tool = state.tools[slot];
+    if (tool.instrument < 0) continue;
+    if (tool.instrument >= static_cast<int>(model.instruments.size())) {
+      throw std::invalid_argument("tool slot " + std::to_string(slot) + ": instrument index " +
+                                  std::to_string(tool.instrument) + " out of range");
+    }
+    const InstrumentModel& im = model.instruments[tool.instrument];
+    SceneMesh metal, dark;
+    metal.name = dark.name = im.name;
+    metal.layer = dark.layer = MeshLayer::kInstrument;
+    metal.material = Make(0.70f, 0.72f, 0.75f, 0.9f, 60.0f, 1.0f, 0);
+    dark.material = Make(0.08f, 0.08f, 0.09f, 0.4f, 30.0f, 0.0f, 0);
+    AppendInstrument(im, tool.jaw, tool.pose, &metal, &dark);
+    // electrocautery-marked areas would be tinted here once State carries a cautery mask
+    scene->meshes.push_back(std::move(metal));
+    if (!dark.indices.empty()) scene->meshes.push_back(std::move(dark));
+
+    ToolOverlay line;
+    line.slot = slot;
+    line.instrument = im.name;
+    line.kind = InstrumentKindName(im.kind);
+    line.force_n = tool.force_n.norm();
+    line.jaw = tool.jaw;
+    scene->overlay.tools.push_back(line);
+  }
+}
+
+void ComputeBounds(Scene* scene) {
+  Eigen::AlignedBox3d box;
+  for (int pass = 0; pass < 2 && box.isEmpty(); ++pass) {
+    for (const SceneMesh& m : scene->meshes) {
+      if (pass == 0 && m.layer != MeshLayer::kBone) continue;
+      if (pass == 1 && (m.layer == MeshLayer::kScope || m.layer == MeshLayer::kInstrument)) {
+        continue;
+      }
+      for (const Vertex& v : m.vertices) box.extend(Vec3(v.pos[0], v.pos[1], v.pos[2]));
+    }
+  }
+  if (box.isEmpty())
+    box.extend(scene->scope.pose.position_mm)
+        .extend(scene->scope.pose.position_mm + Vec3::Constant(10.0));
+  scene->bounds_min = box.min();
+  scene->bounds_max = box.max();
+}
+
+}  // namespace
+
+SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone) {
+  const std::string n = Lower(body_name);
+  if (Contains(n, "cartilage")) return Make(0.82f, 0.86f, 0.90f, 0.7f, 60.0f, 0.0f, 0);
+  if (is_bone) return Make(0.86f, 0.79f, 0.60f, 0.12f, 12.0f, 0.0f, 2);
+  if (Contains(n, "muscle") || Contains(n, "belly")) {
+    return Make(0.55f, 0.17f, 0.13f, 0.45f, 45.0f, 0.0f, 0);
+  }
+  if (Contains(n, "biceps")) return Make(0.90f, 0.84f, 0.70f, 0.6f, 70.0f, 0.0f, 0);
+  if (Contains(n, "labrum")) return Make(0.88f, 0.82f, 0.74f, 0.55f, 60.0f, 0.0f, 0);
+  // tendon (default for soft tissue): glossy white-yellow
+  return Make(0.95f, 0.93f, 0.85f, 0.65f, 80.0f, 0.0f, 0);
+}
+
+ViewFrame ScopeViewFrame(const SceneScope& scope) {
+  const Mat3 r = scope.pose.orientation.normalized().toRotationMatrix();
+  const double cl = std::cos(scope.lens_roll_rad), sl = std::sin(scope.lens_roll_rad);
+  const double ch = std::cos(scope.head_roll_rad), sh = std::sin(scope.head_roll_rad);
+  const double sa = std::sin(scope.lens_angle_rad), ca = std::cos(scope.lens_angle_rad);
+  // forward: (0, sin a, cos a) rotated by lens_roll about +z; up: +y rotated by head_roll
+  const Vec3 f_local(-sl * sa, cl * sa, ca);
+  Vec3 up_local(-sh, ch, 0);
+  up_local -= up_local.dot(f_local) * f_local;
+  if (up_local.norm() < 1e-9) up_local = Vec3(ch, sh, 0);  // looking along the up vector
+  ViewFrame v;
+  v.eye = scope.pose.position_mm;
+  v.forward = (r * f_local).normalized();
+  v.up = (r * up_local.normalized()).normalized();
+  return v;
+}
+
+Pose AimScope(const Vec3& eye, const Vec3& target, const Vec3& up_hint, double lens_angle_rad) {
+  const Vec3 f = (target - eye).normalized();
+  Vec3 u = up_hint - up_hint.dot(f) * f;
+  u = u.norm() > 1e-9 ? Vec3(u.normalized()) : Vec3(f.unitOrthogonal());
+  // local +y and +z in world: f = sin(a) y + cos(a) z and u = cos(a) y - sin(a) z
+  const double sa = std::sin(lens_angle_rad), ca = std::cos(lens_angle_rad);
+  const Vec3 y = sa * f + ca * u, z = ca * f - sa * u;
+  Mat3 r;
+  r.col(0) = y.cross(z);
+  r.col(1) = y;
+  r.col(2) = z;
+  Pose pose;
+  pose.position_mm = eye;
+  pose.orientation = Quat(r).normalized();
+  return pose;
+}
+
+Scene BuildScene(const Model& model, const State& state) {
+  if (state.soft_bodies.size() != model.soft_bodies.size() ||
+      state.bones.size() != model.bones.size() || state.threads.size() != model.threads.size()) {
+    throw std::invalid_argument("BuildScene: State body counts do not match the Model");
+  }
+  Scene scene;
+  scene.scope.pose = state.camera.pose;
+  scene.scope.lens_angle_rad = model.camera.lens_angle_deg * std::numbers::pi / 180;
+  scene.scope.lens_roll_rad = state.camera.lens_roll_rad;
+  scene.scope.head_roll_rad = state.camera.head_roll_rad;
+  scene.scope.fov_rad = model.camera.fov_deg * std::numbers::pi / 180;
+  scene.scope.near_mm = model.camera.near_mm;
+  scene.scope.far_mm = model.camera.far_mm;
+  scene.scope.diameter_mm = model.camera.diameter_mm;
+  scene.overlay.time_s = state.time_s;
+
+  AppendSoftBodies(model, state, &scene);
+  AppendBones(model, state, &scene);
+  AppendThreads(model, state, &scene);
+  AppendTools(model, state, &scene);
+
+  SceneMesh scope;
+  scope.name = "scope";
+  scope.layer = MeshLayer::kScope;
+  scope.visible_in_scope = false;
+  scope.material = Make(0.20f, 0.20f, 0.22f, 0.8f, 50.0f, 1.0f, 0);
+  AppendScope(state.camera.pose, model.camera.diameter_mm, &scope);
+  scene.meshes.push_back(std::move(scope));
+
+  ComputeBounds(&scene);
+  return scene;
+}
+
+}  // namespace arthrosim::render

@@ -1,0 +1,138 @@
+#pragma once
+// GLSL 330 core sources of the renderer.
+
+namespace arthrosim::render::shaders {
+
+// Meshes: world-space positions; lighting in world space.
+inline constexpr const char* kMeshVertex = R"(#version 330 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_normal;
+layout(location = 2) in vec2 a_uv;
+layout(location = 3) in float a_rough;
+uniform mat4 u_view_proj;
+out vec3 v_pos;
+out vec3 v_normal;
+out vec2 v_uv;
+out float v_rough;
+void main() {
+  v_pos = a_pos;
+  v_normal = a_normal;
+  v_uv = a_uv;
+  v_rough = a_rough;
+  gl_Position = u_view_proj * vec4(a_pos, 1.0);
+}
+)";
+
+// Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
+// fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
+// overview: a headlight without fall-off (u_ref2 = 0). Patterns: 1 braided suture, 2 bone.
+inline constexpr const char* kMeshFragment = R"(#version 330 core
+in vec3 v_pos;
+in vec3 v_normal;
+in vec2 v_uv;
+in float v_rough;
+uniform vec3 u_base;
+uniform float u_spec;
+uniform float u_shininess;
+uniform float u_metal;
+uniform int u_pattern;
+uniform vec3 u_eye;
+uniform vec3 u_light;
+uniform float u_ref2;
+uniform vec3 u_spot_dir;
+uniform int u_spot;
+uniform float u_ambient;
+out vec4 o_color;
+
+float Hash(vec3 p) {
+  p = fract(p * 0.3183099 + vec3(0.71, 0.113, 0.419));
+  p *= 17.0;
+  return fract(p.x * p.y * p.z * (p.x + p.y + p.z));
+}
+float Noise(vec3 x) {
+  vec3 i = floor(x);
+  vec3 f = fract(x);
+  f = f * f * (3.0 - 2.0 * f);
+  return mix(mix(mix(Hash(i), Hash(i + vec3(1, 0, 0)), f.x),
+                 mix(Hash(i + vec3(0, 1, 0)), Hash(i + vec3(1, 1, 0)), f.x), f.y),
+             mix(mix(Hash(i + vec3(0, 0, 1)), Hash(i + vec3(1, 0, 1)), f.x),
+                 mix(Hash(i + vec3(0, 1, 1)), Hash(i + vec3(1, 1, 1)), f.x), f.y), f.z);
+}
+
+void main() {
+  vec3 n = normalize(v_normal);
+  vec3 view = normalize(u_eye - v_pos);
+  if (dot(n, view) < 0.0) n = -n;  // two-sided: cut faces, thin blades, open tubes
+  vec3 albedo = u_base;
+  float spec = u_spec;
+  if (u_pattern == 1) {
+    // braid: two helices of white tracer over the blue
+    float a = fract(v_uv.x * 0.5 + v_uv.y * 2.0);
+    float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);
+    if (a < 0.16 || b < 0.08) albedo = vec3(0.93, 0.93, 0.90);
+  } else if (u_pattern == 2) {
+    albedo *= 0.93 + 0.07 * Noise(v_pos * 1.3);
+    if (v_rough > 0.0) {
+      // burred: bleeding cancellous bone, pitted, dull
+      float pits = Noise(v_pos * 5.0);
+      vec3 cancellous = vec3(0.80, 0.46, 0.38) * (0.65 + 0.35 * pits);
+      albedo = mix(albedo, cancellous, v_rough);
+      spec *= 1.0 - 0.8 * v_rough;
+      vec3 jitter = vec3(Noise(v_pos * 4.0), Noise(v_pos * 4.0 + 17.0), Noise(v_pos * 4.0 + 31.0));
+      n = normalize(n + v_rough * 0.6 * (jitter - 0.5));
+    }
+  }
+  vec3 to_light = u_light - v_pos;
+  float d2 = max(dot(to_light, to_light), 1e-6);
+  vec3 l = to_light * inversesqrt(d2);
+  float irradiance = u_ref2 > 0.0 ? min(u_ref2 / d2, 3.0) : 1.0;
+  if (u_spot != 0) {
+    float c = max(dot(-l, u_spot_dir), 0.0);
+    irradiance *= 0.3 + 0.7 * c * c;
+  }
+  float diffuse = max(dot(n, l), 0.0);
+  vec3 h = normalize(l + view);
+  float highlight = spec * pow(max(dot(n, h), 0.0), u_shininess);
+  vec3 spec_color = mix(vec3(1.0), albedo, u_metal);
+  vec3 color = albedo * (u_ambient + irradiance * diffuse) + irradiance * highlight * spec_color;
+  o_color = vec4(clamp(color, 0.0, 1.0), 1.0);
+}
+)";
+
+// Full-screen triangle without vertex data.
+inline constexpr const char* kPostVertex = R"(#version 330 core
+void main() {
+  vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
+  gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+// Scope optics: the rectilinear render (half-angle u_theta_max at the texture edge) is remapped
+// to the image circle, blending rectilinear (k = 0) with an equidistant fisheye (k = 1: barrel
+// distortion); black outside the field stop with a one-pixel anti-aliased rim.
+inline constexpr const char* kPostFragment = R"(#version 330 core
+uniform sampler2D u_tex;
+uniform vec2 u_center;
+uniform float u_radius;
+uniform float u_theta_max;
+uniform float u_tan_max;
+uniform float u_k;
+out vec4 o_color;
+void main() {
+  vec2 d = gl_FragCoord.xy - u_center;
+  float len = length(d);
+  float inside = clamp(u_radius - len + 0.5, 0.0, 1.0);
+  if (inside <= 0.0) {
+    o_color = vec4(0.0, 0.0, 0.0, 1.0);
+    return;
+  }
+  float r = min(len / u_radius, 1.0);
+  float rho = mix(r, tan(r * u_theta_max) / u_tan_max, u_k);
+  vec2 dir = len > 0.0 ? d / len : vec2(0.0);
+  vec3 c = texture(u_tex, vec2(0.5) + 0.5 * rho * dir).rgb;
+  c *= 1.0 - 0.25 * r * r * r * r;  // rim vignetting of the rod-lens optics
+  o_color = vec4(c * inside, 1.0);
+}
+)";
+
+}  // namespace arthrosim::render::shaders
