@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <stdexcept>
 #include <utility>
 
 #include "arthrosim/core/error.h"
@@ -147,6 +148,33 @@ TriQualityReport OrientAndCheck(TriMesh* m, const std::string& file) {
   }
   r.num_unreferenced_nodes = CountUnused(used);
   return r;
+}
+
+std::vector<std::int32_t> RemoveUnreferencedNodes(TetMesh* m) {
+  const auto n = static_cast<std::size_t>(m->nodes.cols());
+  std::vector<std::int32_t> map(n, -1);
+  for (const Tet& t : m->tets) {
+    for (const std::int32_t v : t) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n) {
+        throw std::out_of_range("RemoveUnreferencedNodes: node index " + std::to_string(v) +
+                                " out of range (run OrientAndCheck first)");
+      }
+      map[static_cast<std::size_t>(v)] = 0;
+    }
+  }
+  std::int32_t next = 0;
+  for (std::int32_t& v : map) {
+    if (v == 0) v = next++;
+  }
+  Points kept(3, next);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (map[i] >= 0) kept.col(map[i]) = m->nodes.col(static_cast<Eigen::Index>(i));
+  }
+  m->nodes = std::move(kept);
+  for (Tet& t : m->tets) {
+    for (std::int32_t& v : t) v = map[static_cast<std::size_t>(v)];
+  }
+  return map;
 }
 
 }  // namespace arthrosim::mesh

@@ -278,6 +278,28 @@ TEST(MshTest, SparseNodeTagsAreRenumberedInFileOrder) {
   EXPECT_EQ(b.volume.nodes.col(0), Vec3(0, 0, 1));
 }
 
+TEST(MshTest, DuplicateElementsOfMsh2AreMergedAcrossGroups) {
+  // MSH 2 repeats an element once per physical group; here the repeats are not adjacent.
+  const std::string msh =
+      "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"
+      "$PhysicalNames\n2\n3 1 \"a\"\n3 2 \"b\"\n$EndPhysicalNames\n"
+      "$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n$EndNodes\n"
+      "$Elements\n4\n"
+      "1 4 2 1 1 1 2 3 4\n"
+      "2 4 2 1 1 2 3 4 5\n"
+      "3 4 2 2 1 1 2 3 4\n"
+      "4 4 2 2 9 1 2 3 4\n"  // same nodes, another entity: a distinct element
+      "$EndElements\n";
+  const MeshData d = ParseMesh("dup.msh", msh);
+  EXPECT_EQ(d.volume.tets, (std::vector<Tet>{{0, 1, 2, 3}, {1, 2, 3, 4}, {0, 1, 2, 3}}));
+  EXPECT_EQ(d.tet_physical, (std::vector<int>{1, 1, 2}));
+  ASSERT_EQ(d.groups.size(), 2u);
+  EXPECT_EQ(d.groups[0].name, "a");
+  EXPECT_EQ(d.groups[0].elements, (std::vector<std::int32_t>{0, 1}));
+  EXPECT_EQ(d.groups[1].name, "b");
+  EXPECT_EQ(d.groups[1].elements, (std::vector<std::int32_t>{0, 2}));
+}
+
 TEST(ObjTest, IndexFormsNegativeIndicesFansLinesAndGroups) {
   const std::string obj =
       "# square, a pentagon fan and a polyline\n"

@@ -123,6 +123,16 @@ TEST(OrientTest, UnreferencedNodesAreCounted) {
   m.nodes.col(4) = Vec3(5, 5, 5);
   m.nodes.col(5) = Vec3(6, 5, 5);
   EXPECT_EQ(OrientAndCheck(&m, "u").num_unreferenced_nodes, 2);
+  // Put an unused node first: removal shifts the others down, keeping their order.
+  TetMesh s;
+  s.nodes.resize(3, 6);
+  s.nodes.col(0) = Vec3(9, 9, 9);
+  s.nodes.rightCols(5) = m.nodes.leftCols(5);
+  s.tets = {{1, 2, 3, 4}};
+  const std::vector<std::int32_t> map = RemoveUnreferencedNodes(&s);
+  EXPECT_EQ(map, (std::vector<std::int32_t>{-1, 0, 1, 2, 3, -1}));
+  EXPECT_EQ(s.nodes, UnitTet().nodes);
+  EXPECT_EQ(s.tets, UnitTet().tets);
 }
 
 TriMesh CubeSurface(double a, const Vec3& shift) {

@@ -49,4 +49,8 @@ TetQualityReport OrientAndCheck(TetMesh* m, const std::string& file);
 /// oriented but encloses negative volume, reverses every triangle so it faces outward.
 TriQualityReport OrientAndCheck(TriMesh* m, const std::string& file);
 
+/// Drops nodes used by no tet, renumbering the rest in their original order. Returns the map
+/// old index -> new index (-1 for dropped nodes), so groups or other meshes can be remapped.
+std::vector<std::int32_t> RemoveUnreferencedNodes(TetMesh* m);
+
 }  // namespace arthrosim::mesh
