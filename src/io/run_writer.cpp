@@ -130,6 +130,7 @@ struct RunWriter::Impl {
 void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial) {
   const Model* model = &model_ref;
   const int z = options.deflate_level;
+  const int zf = options.float_deflate_level;
   h5::Group& root = file.root();
   root.SetAttr("format", layout::kFormatName);
   root.SetAttr("format_version", layout::kFormatVersion);
@@ -174,7 +175,7 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     g.SetAttr("initial_nodes", static_cast<std::int64_t>(n));
     g.SetAttr("initial_elements", static_cast<std::int64_t>(e));
     BodyOut& b = bodies[i];
-    b.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, z);
+    b.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, zf);
     b.node_count.Create(g, "node_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
     b.element_count.Create(g, "element_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
     b.element_alive.Create(g, "element_alive", H5T_STD_U8LE, 1, {e}, {1}, &kZeroU8, z);
@@ -182,7 +183,7 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     spec.deflate = z;
     b.elements = g.CreateDataset("elements", H5T_STD_I32LE, spec);
     b.alive_elements.Create(g, "alive_elements", H5T_STD_I32LE, 4, 16, z);
-    b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, z);
+    b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, zf);
   }
 
   h5::Group gt = root.CreateGroup(layout::kThreads);
@@ -193,11 +194,11 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("diameter_mm", model->threads[i].diameter_mm);
     ThreadOut& t = threads[i];
-    t.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, z);
+    t.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, zf);
     t.node_count.Create(g, "node_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
     t.node_alive.Create(g, "node_alive", H5T_STD_U8LE, 1, {n}, {1}, &kZeroU8, z);
     t.alive_segments.Create(g, "alive_segments", H5T_STD_I32LE, 2, 8, z);
-    t.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, z);
+    t.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, zf);
   }
 
   h5::Group gbo = root.CreateGroup(layout::kBones);
@@ -206,7 +207,7 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     h5::Group g = gbo.CreateGroup(model->bones[i].name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("hardness", model->bones[i].hardness);
-    bones[i].vertices.Create(g, "vertices", H5T_IEEE_F64LE, 3, 24, z);
+    bones[i].vertices.Create(g, "vertices", H5T_IEEE_F64LE, 3, 24, zf);
     bones[i].triangles.Create(g, "triangles", H5T_STD_I32LE, 3, 12, z);
     bones[i].removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
   }
@@ -497,8 +498,9 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
   m.instrument_count = model.instruments.size();
   m.flush_interval_s = model.options.flush_interval_s;
   m.xmf_path = options.write_xdmf ? XdmfPathFor(path) : "";
-  if (options.deflate_level < 0 || options.deflate_level > 9) {
-    throw std::invalid_argument("RunWriter: deflate_level must be in 0..9");
+  if (options.deflate_level < 0 || options.deflate_level > 9 || options.float_deflate_level < 0 ||
+      options.float_deflate_level > 9) {
+    throw std::invalid_argument("RunWriter: deflate levels must be in 0..9");
   }
   CheckNames(model, "bodies.name", model.soft_bodies);
   CheckNames(model, "bodies.name", model.threads);
