@@ -5,9 +5,9 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "arthrosim/mesh/surface.h"
 #include "instrument_shapes.h"
 #include "mesh_builder.h"
-#include "soft_boundary.h"
 
 namespace arthrosim::render {
 namespace {
@@ -71,8 +71,12 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
       throw std::invalid_argument("soft body '" + model.soft_bodies[i].name +
                                   "': tet_alive size differs from tets");
     }
-    SceneMesh mesh = TriangleMesh(s.x, AliveBoundary(s.tets, s.tet_alive),
-                                  "soft body '" + model.soft_bodies[i].name + "'");
+    // the current boundary of the alive tets, so cut and shaved faces are surface too
+    std::vector<mesh::Tri> tris;
+    for (const mesh::BoundaryFace& f : mesh::ExtractBoundary(s.tets, s.tet_alive)) {
+      tris.push_back(f.nodes);
+    }
+    SceneMesh mesh = TriangleMesh(s.x, tris, "soft body '" + model.soft_bodies[i].name + "'");
     mesh.name = model.soft_bodies[i].name;
     mesh.layer = MeshLayer::kSoftTissue;
     mesh.material = TissueMaterial(mesh.name, false);

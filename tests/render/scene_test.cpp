@@ -125,8 +125,18 @@ TEST(BuildSceneTest, CutTetsShowTheCutSurface) {
   const Scene scene = BuildScene(model, state);
   const SceneMesh* tendon = Find(scene, "tendon", MeshLayer::kSoftTissue);
   ASSERT_TRUE(tendon);
+  // the 4 faces of the removed tet now bound the 4 corner tets: 12 + 4 triangles, closed,
+  // enclosing the cube minus the central third
   EXPECT_EQ(tendon->indices.size(), 3u * 16);
   EXPECT_TRUE(Closed(*tendon));
+  double volume = 0;
+  for (std::size_t t = 0; t < tendon->indices.size(); t += 3) {
+    const Vec3 a = P(tendon->vertices[tendon->indices[t]]),
+               b = P(tendon->vertices[tendon->indices[t + 1]]),
+               c = P(tendon->vertices[tendon->indices[t + 2]]);
+    volume += a.dot(b.cross(c)) / 6.0;
+  }
+  EXPECT_NEAR(volume, 512.0 * 2.0 / 3.0, 1e-3);
 }
 
 TEST(BuildSceneTest, BurredBoneVerticesAreRough) {
