@@ -128,10 +128,7 @@ struct ArkodeBridge {
         s_.ApplySystem(v, y);
       }
       void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const override {
-        for (std::size_t k = 0; k < s_.precond_.size(); ++k) {
-          const auto o = static_cast<Eigen::Index>(3 * k);
-          z->segment<3>(o) = s_.precond_[k] * r.segment<3>(o);
-        }
+        s_.Precondition(r, z);
       }
 
      private:

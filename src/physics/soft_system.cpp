@@ -42,6 +42,15 @@ constexpr std::int64_t kTetBlock = 128;  // fixed ParallelFor block (independent
 
 }  // namespace
 
+struct SoftSystem::RestFactor {
+  double h = -1;
+  std::vector<Eigen::Index> compact;  // per slot: first scalar unknown, -1 if not free
+  Eigen::Index n = 0;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  bool ok = false;
+  mutable Eigen::VectorXd r, z;
+};
+
 SoftSystem::SoftSystem() = default;
 SoftSystem::~SoftSystem() = default;
 SoftSystem::SoftSystem(SoftSystem&&) noexcept = default;
@@ -57,6 +66,7 @@ void SoftSystem::Build(const Model& model, const State& state) {
                           " soft bodies, model has ", std::to_string(model.soft_bodies.size())}));
   }
   arkode_.reset();
+  rest_dirty_ = true;
   Layout(model, state);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const SoftBodyState& sb = state.soft_bodies[b];
@@ -116,6 +126,7 @@ void SoftSystem::Layout(const Model& model, const State& state) {
   fixed_.assign(ns, 0);
   free_.assign(ns, 0);
   precond_.assign(ns, Mat3::Zero());
+  node_rot_.assign(ns, Mat3::Identity());
   kmat_.Reset(slots_);
   for (std::size_t b = 0; b < nb; ++b) {
     for (std::size_t i = 0; i < bodies_[b].slot.size(); ++i) {
@@ -201,6 +212,7 @@ void SoftSystem::RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb
     }
   }
   bd.rest[static_cast<std::size_t>(tet)] = rest;
+  rest_dirty_ = true;
 }
 
 void SoftSystem::AddElement(int body, std::int32_t tet, const SoftBodyState& sb) {
@@ -241,6 +253,7 @@ void SoftSystem::RemoveElement(int body, std::int32_t tet) {
     if (it != inc.end() && *it == ref) inc.erase(it);
   }
   bd.rest[static_cast<std::size_t>(tet)] = TetRest{};
+  rest_dirty_ = true;
   for (int a = 0; a < 4; ++a) RecomputeSlot(s[static_cast<std::size_t>(a)]);
 }
 
@@ -594,6 +607,93 @@ void SoftSystem::BuildPreconditioner(double h) {
     const Mat3 inv = precond_[i].inverse();
     precond_[i] = inv.allFinite() ? inv : Mat3::Identity();
   }
+  if (preconditioner_ == Preconditioner::kRestCholesky) {
+    if (rest_dirty_ || !rest_factor_ || rest_factor_->h != h) FactorRestSystem(h);
+    // Node rotations: polar of the sum of incident element rotations, in (body, tet) order.
+    for (std::int32_t s = 0; s < slots_; ++s) {
+      const auto i = static_cast<std::size_t>(s);
+      if (!free_[i]) continue;
+      Mat3 sum = Mat3::Zero();
+      for (const ElemRef& r : incident_[i]) {
+        const Body& bd = bodies_[static_cast<std::size_t>(r.body)];
+        if (bd.rest[static_cast<std::size_t>(r.tet)].degenerate) continue;
+        sum += bd.rotation[static_cast<std::size_t>(r.tet)];
+      }
+      node_rot_[i] = PolarRotation(sum);
+    }
+  }
+}
+
+void SoftSystem::FactorRestSystem(double h) {
+  // The step matrix with every rotation = I. It depends on rest data, topology and h only,
+  // so it is rebuilt lazily after changes and is identical after a restore.
+  if (!rest_factor_) rest_factor_ = std::make_unique<RestFactor>();
+  RestFactor& rf = *rest_factor_;
+  rest_dirty_ = false;
+  rf.h = h;
+  rf.compact.assign(static_cast<std::size_t>(slots_), -1);
+  rf.n = 0;
+  for (std::int32_t s = 0; s < slots_; ++s) {
+    if (free_[static_cast<std::size_t>(s)]) {
+      rf.compact[static_cast<std::size_t>(s)] = rf.n;
+      rf.n += 3;
+    }
+  }
+  std::vector<Eigen::Triplet<double>> trip;
+  auto put = [&](std::int32_t si, std::int32_t sj, const Mat3& m) {
+    const Eigen::Index r = rf.compact[static_cast<std::size_t>(si)];
+    const Eigen::Index c = rf.compact[static_cast<std::size_t>(sj)];
+    if (r < 0 || c < 0) return;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) trip.emplace_back(r + i, c + j, m(i, j));
+  };
+  std::array<Mat3, 10> blocks;
+  const Mat3 eye = Mat3::Identity();
+  for (const Body& bd : bodies_) {
+    const double scale = h * (h + bd.beta);
+    for (std::size_t t = 0; t < bd.rest.size(); ++t) {
+      if (!bd.alive[t] || bd.rest[t].degenerate) continue;
+      ElementStiffnessBlocks(bd.rest[t], eye, bd.lame, scale, &blocks);
+      const auto& sl = bd.tet_slot[t];
+      for (int a = 0; a < 4; ++a) put(sl[a], sl[a], blocks[a]);
+      for (int e = 0; e < 6; ++e) {
+        const int a = kTetEdges[e][0], b = kTetEdges[e][1];
+        put(sl[a], sl[b], blocks[4 + e]);
+        put(sl[b], sl[a], blocks[4 + e].transpose());
+      }
+    }
+  }
+  for (std::int32_t s = 0; s < slots_; ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    put(s, s, (mass_[i] + h * alpha_mass_[i]) * eye);
+  }
+  Eigen::SparseMatrix<double> a(rf.n, rf.n);
+  a.setFromTriplets(trip.begin(), trip.end());
+  rf.ldlt.compute(a);
+  rf.ok = rf.ldlt.info() == Eigen::Success;
+  rf.r.setZero(rf.n);
+  rf.z.setZero(rf.n);
+}
+
+void SoftSystem::Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const {
+  if (preconditioner_ == Preconditioner::kRestCholesky && rest_factor_ && rest_factor_->ok) {
+    const RestFactor& rf = *rest_factor_;
+    for (std::int32_t s = 0; s < slots_; ++s) {
+      const Eigen::Index c = rf.compact[static_cast<std::size_t>(s)];
+      if (c >= 0)
+        rf.r.segment<3>(c) = node_rot_[static_cast<std::size_t>(s)].transpose() * Seg(r, s);
+    }
+    rf.z = rf.ldlt.solve(rf.r);
+    z->setZero();
+    for (std::int32_t s = 0; s < slots_; ++s) {
+      const Eigen::Index c = rf.compact[static_cast<std::size_t>(s)];
+      if (c >= 0) Seg(*z, s) = node_rot_[static_cast<std::size_t>(s)] * rf.z.segment<3>(c);
+    }
+    return;
+  }
+  for (std::int32_t s = 0; s < slots_; ++s) {
+    Seg(*z, s) = precond_[static_cast<std::size_t>(s)] * Seg(r, s);
+  }
 }
 
 void SoftSystem::ApplyStiffness(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
@@ -654,22 +754,18 @@ void SoftSystem::ApplySystem(const Eigen::VectorXd& x, Eigen::VectorXd* y) const
 }
 
 namespace {
+using VecFn = std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)>;
 class StepOperator final : public SpdOperator {
  public:
-  StepOperator(std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> apply,
-               const std::vector<Mat3>& precond)
-      : apply_(std::move(apply)), precond_(precond) {}
+  StepOperator(VecFn apply, VecFn precondition)
+      : apply_(std::move(apply)), precondition_(std::move(precondition)) {}
   void Apply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const override { apply_(x, y); }
   void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const override {
-    for (std::size_t s = 0; s < precond_.size(); ++s) {
-      const auto i = static_cast<Eigen::Index>(3 * s);
-      z->segment<3>(i) = precond_[s] * r.segment<3>(i);
-    }
+    precondition_(r, z);
   }
 
  private:
-  std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> apply_;
-  const std::vector<Mat3>& precond_;
+  VecFn apply_, precondition_;
 };
 }  // namespace
 
@@ -755,8 +851,9 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   stats.assembly_ms = MsSince(t0);
 
   t0 = Clock::now();
-  const StepOperator op([this](const Eigen::VectorXd& x, Eigen::VectorXd* y) { ApplySystem(x, y); },
-                        precond_);
+  const StepOperator op(
+      [this](const Eigen::VectorXd& x, Eigen::VectorXd* y) { ApplySystem(x, y); },
+      [this](const Eigen::VectorXd& r, Eigen::VectorXd* z) { Precondition(r, z); });
   const CgResult cg =
       SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance);
   stats.solve_ms = MsSince(t0);

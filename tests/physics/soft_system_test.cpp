@@ -7,8 +7,10 @@
 #include <string>
 
 #include "arthrosim/core/parallel.h"
+#include "arthrosim/core/units.h"
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/physics/fem_bench.h"
+#include "arthrosim/physics/polar_decomposition.h"
 #include "arthrosim/physics/soft_system.h"
 
 namespace arthrosim::physics {
@@ -42,6 +44,339 @@ TEST(BeamStatic, MatchesReferenceAndConvergesToBeamTheory) {
     prev_err = err;
   }
   EXPECT_LT(prev_err, 0.06);
+}
+
+// The damped dynamic solver settles onto the static solution (3 573 tets, dt 20 ms).
+TEST(BeamDynamic, SettlesToStaticSolution) {
+  for (SystemProduct product : {SystemProduct::kAssembled, SystemProduct::kMatrixFree}) {
+    BeamBenchOptions opt;
+    opt.mesh_path = BeamPath("2.5");
+    opt.product = product;
+    const BeamBenchResult r = RunBeamBenchmark(opt);
+    std::printf(
+        "%s: %d nodes %d tets, %.3f ms/step (rot %.3f asm %.3f solve %.3f), CG %.1f it "
+        "(max %d), res %.2e, static %.5f settled %.5f err %.4f %%\n",
+        product == SystemProduct::kAssembled ? "assembled" : "matrix-free", r.nodes, r.tets,
+        r.ms_per_step, r.rotations_ms, r.assembly_ms, r.solve_ms, r.mean_cg_iterations,
+        r.max_cg_iterations, r.mean_cg_residual, r.static_tip_mm, r.settled_tip_mm,
+        r.beam_settled_error_pct);
+    EXPECT_LT(r.beam_settled_error_pct, 0.5);
+  }
+}
+
+Model CoarseBeam(double alpha, double beta) {
+  return MakeBeamModel(mesh::ReadTetMesh(BeamPath("5")), alpha, beta);
+}
+
+bool OnBoundary(const Vec3& p) {
+  const double e = 1e-9;
+  return p.x() < e || p.x() > 100 - e || p.y() < e || p.y() > 10 - e || p.z() < e || p.z() > 10 - e;
+}
+
+// Patch test: an affine displacement gives one strain everywhere and no interior residual.
+TEST(SoftSystem, PatchTestAffineDisplacement) {
+  Model model = CoarseBeam(0, 0);
+  model.soft_bodies[0].fixed_nodes.clear();
+  State state = MakeInitialState(model);
+  SoftSystem sys;
+  sys.Build(model, state);
+  Mat3 a;
+  a << 1.004, 0.002, -0.001, 0.003, 0.997, 0.002, 0.001, -0.002, 1.003;
+  SoftBodyState& b = state.soft_bodies[0];
+  for (Eigen::Index i = 0; i < b.x.cols(); ++i) b.x.col(i) = a * b.x_rest.col(i) + Vec3(1, 2, 3);
+  const Points f = sys.ElasticForces(model, state, 0);
+  double boundary = 0, interior = 0;
+  int n_interior = 0;
+  for (Eigen::Index i = 0; i < f.cols(); ++i) {
+    if (OnBoundary(b.x_rest.col(i))) {
+      boundary = std::max(boundary, f.col(i).norm());
+    } else {
+      interior = std::max(interior, f.col(i).norm());
+      ++n_interior;
+    }
+  }
+  ASSERT_GT(n_interior, 0);
+  ASSERT_GT(boundary, 0);
+  EXPECT_LT(interior, 1e-10 * boundary);
+  // Uniform strain: the energy is the energy density of eps = sym(R^T A) - I times the volume.
+  const Mat3 r = PolarRotation(a);
+  Mat3 eps = 0.5 * (r.transpose() * a + a.transpose() * r);
+  eps.diagonal().array() -= 1.0;
+  const Lame lame = LameFromMaterial(model.soft_bodies[0].material);
+  const double density =
+      lame.mu * eps.squaredNorm() + 0.5 * lame.lambda * eps.trace() * eps.trace();
+  EXPECT_NEAR(sys.ComputeEnergies(model, state).elastic_uj, density * 10000.0,
+              1e-9 * density * 10000.0);
+}
+
+// Rigid rotations (including 90 and 180 degrees) of an unstressed mesh give no elastic force.
+TEST(SoftSystem, RigidRotationsGiveZeroForce) {
+  Model model = CoarseBeam(0, 0);
+  State state = MakeInitialState(model);
+  SoftSystem sys;
+  sys.Build(model, state);
+  SoftBodyState& b = state.soft_bodies[0];
+  const Points rest = b.x_rest;
+  for (Eigen::Index i = 0; i < b.x.cols(); ++i) b.x(0, i) = 1.01 * rest(0, i);
+  // Force scale per unit strain (forces are linear in a small stretch).
+  const double scale = sys.ElasticForces(model, state, 0).colwise().norm().maxCoeff() / 0.01;
+  ASSERT_GT(scale, 0);
+  const Mat3 rotations[] = {
+      Eigen::AngleAxisd(units::kPi / 2, Vec3::UnitZ()).toRotationMatrix(),
+      Eigen::AngleAxisd(units::kPi, Vec3::UnitY()).toRotationMatrix(),
+      Eigen::AngleAxisd(units::kPi, Vec3(1, 2, 3).normalized()).toRotationMatrix(),
+      Eigen::AngleAxisd(-units::kPi / 2, Vec3(1, -1, 0).normalized()).toRotationMatrix(),
+      Eigen::AngleAxisd(0.3, Vec3(0, 1, 1).normalized()).toRotationMatrix()};
+  for (const Mat3& r : rotations) {
+    for (Eigen::Index i = 0; i < b.x.cols(); ++i) b.x.col(i) = r * rest.col(i) + Vec3(5, -7, 9);
+    const Points f = sys.ElasticForces(model, state, 0);
+    EXPECT_LT(f.colwise().norm().maxCoeff(), 1e-12 * scale);
+    EXPECT_LT(sys.ComputeEnergies(model, state).elastic_uj, 1e-12);
+  }
+}
+
+// Free vibration from a bent shape without gravity: the damped energy never grows, and
+// undamped implicit Euler loses energy at every step (its numerical dissipation).
+TEST(SoftSystem, FreeVibrationEnergyDecays) {
+  for (double damping : {0.5, 0.0}) {
+    Model model = CoarseBeam(damping, damping * 0.01);
+    model.solver.cg_tolerance = 1e-12;
+    model.solver.cg_max_iterations = 500;
+    model.options.dt_s = 0.002;
+    State state = MakeInitialState(model);
+    SoftSystem sys;
+    sys.Build(model, state);
+    sys.SolveStatic(model, &state, 1);  // bent by gravity
+    model.options.gravity_mm_s2 = Vec3::Zero();
+    double prev = sys.ComputeEnergies(model, state).total();
+    ASSERT_GT(prev, 0);
+    const double e0 = prev;
+    for (int k = 0; k < 100; ++k) {
+      sys.Step(model, nullptr, nullptr, &state);
+      const double e = sys.ComputeEnergies(model, state).total();
+      EXPECT_LE(e, prev * (1 + 1e-9)) << "step " << k << " damping " << damping;
+      if (damping == 0) EXPECT_LT(e, prev) << "step " << k;
+      prev = e;
+    }
+    EXPECT_LT(prev, 0.9 * e0);
+  }
+}
+
+// Remove, split and re-rest: masses, volumes, and bit-identity with a rebuild from scratch.
+TEST(SoftSystem, TopologyChangesKeepConsistentSystem) {
+  Model model = CoarseBeam(1.0, 0.01);
+  State state = MakeInitialState(model);
+  SoftSystem sys;
+  sys.Build(model, state);
+  const double rho = 1000 * units::kKgPerM3ToInternal;
+  EXPECT_NEAR(sys.TotalMass(), rho * 10000, 1e-9 * rho * 10000);
+  for (int k = 0; k < 5; ++k) sys.Step(model, nullptr, nullptr, &state);
+  // Cut: remove every tet with its centroid near x = 60.
+  std::vector<std::int32_t> cut;
+  const SoftBodyState& b = state.soft_bodies[0];
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (std::int32_t n : b.tets[t]) c += 0.25 * b.x_rest.col(n);
+    if (std::abs(c.x() - 60) < 3 && c.z() > 5) cut.push_back(static_cast<std::int32_t>(t));
+  }
+  ASSERT_FALSE(cut.empty());
+  sys.RemoveTets(0, cut, &state);
+  // Split a few tets 1 -> 4 (enough to force a re-layout of the slot range too).
+  for (int k = 0; k < 40; ++k) {
+    std::int32_t t = 7 * k + 3;
+    while (!state.soft_bodies[0].tet_alive[static_cast<std::size_t>(t)]) ++t;
+    sys.SplitTet(model, 0, t, {0.1, 0.2, 0.3, 0.4}, &state);
+  }
+  // Plastic re-rest: shave 0.3 mm off the top near the tip.
+  std::vector<std::int32_t> nodes;
+  for (Eigen::Index i = 0; i < state.soft_bodies[0].x_rest.cols(); ++i) {
+    const Vec3 p = state.soft_bodies[0].x_rest.col(i);
+    if (p.x() > 80 && p.z() > 9.999) nodes.push_back(static_cast<std::int32_t>(i));
+  }
+  Points rest(3, static_cast<Eigen::Index>(nodes.size()));
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    rest.col(static_cast<Eigen::Index>(i)) =
+        state.soft_bodies[0].x_rest.col(nodes[i]) - Vec3(0, 0, 0.3);
+  }
+  sys.SetRestPositions(0, nodes, rest, &state);
+
+  EXPECT_NEAR(sys.TotalMass(), rho * sys.AliveVolume(0), 1e-12 * sys.TotalMass());
+  EXPECT_LT(sys.AliveVolume(0), 10000.0);
+  // Nodes of removed tets only drop out of the solve.
+  int dropped = 0;
+  for (Eigen::Index i = 0; i < state.soft_bodies[0].x.cols(); ++i) {
+    if (sys.NodeMass(0, static_cast<std::int32_t>(i)) == 0) {
+      ++dropped;
+      EXPECT_FALSE(sys.IsFree(0, static_cast<std::int32_t>(i)));
+    }
+  }
+  // Incremental updates and a rebuild from the same State give the same bits.
+  SoftSystem fresh;
+  fresh.Build(model, state);
+  EXPECT_EQ(fresh.TotalMass(), sys.TotalMass());
+  State s1 = state, s2 = state;
+  for (int k = 0; k < 3; ++k) {
+    sys.Step(model, nullptr, nullptr, &s1);
+    fresh.Step(model, nullptr, nullptr, &s2);
+  }
+  EXPECT_TRUE(BitwiseEqual(s1, s2));
+  // Bounded and finite over 1 000 steps.
+  double emax = 0;
+  for (int k = 0; k < 1000; ++k) {
+    sys.Step(model, nullptr, nullptr, &s1);
+    emax = std::max(emax, std::abs(sys.ComputeEnergies(model, s1).total()));
+  }
+  EXPECT_TRUE(s1.soft_bodies[0].x.allFinite());
+  EXPECT_TRUE(s1.soft_bodies[0].v.allFinite());
+  EXPECT_LT(emax, 1e3);  // uJ; the beam's gravitational energy scale is ~ m g L ~ 5e2
+  std::printf("topology: %zu cut, 40 split, %zu re-rested, %d nodes dropped, max |E| %.3g uJ\n",
+              cut.size(), nodes.size(), dropped, emax);
+}
+
+// Two bodies joined at coincident nodes behave as one body.
+TEST(SoftSystem, JoinedBodiesActAsOne) {
+  const Model whole = CoarseBeam(0, 0);
+  const mesh::TetMesh& m = whole.soft_bodies[0].rest_mesh;
+  Model split = whole;
+  split.soft_bodies.clear();
+  for (int part = 0; part < 2; ++part) {
+    SoftBodyModel body = whole.soft_bodies[0];
+    body.name = part == 0 ? "a" : "b";
+    body.rest_mesh.tets.clear();
+    for (const mesh::Tet& t : m.tets) {
+      Vec3 c = Vec3::Zero();
+      for (std::int32_t n : t) c += 0.25 * m.nodes.col(n);
+      if ((c.x() < 50) == (part == 0)) body.rest_mesh.tets.push_back(t);
+    }
+    if (part == 1) body.fixed_nodes.clear();
+    split.soft_bodies.push_back(body);
+  }
+  split.joins.push_back(Join{"a", "b", 1e-6});
+  State s_whole = MakeInitialState(whole), s_split = MakeInitialState(split);
+  SoftSystem a, b;
+  a.Build(whole, s_whole);
+  b.Build(split, s_split);
+  EXPECT_NEAR(a.TotalMass(), b.TotalMass(), 1e-12 * a.TotalMass());
+  a.SolveStatic(whole, &s_whole, 1);
+  b.SolveStatic(split, &s_split, 1);
+  const double tip = BeamTipDeflection(s_whole);
+  State view = s_split;
+  view.soft_bodies.erase(view.soft_bodies.begin());  // tip nodes live in body b
+  EXPECT_NEAR(BeamTipDeflection(view), tip, 1e-9 * std::abs(tip));
+  for (int k = 0; k < 3; ++k) b.Step(split, nullptr, nullptr, &s_split);
+  int shared = 0;
+  for (Eigen::Index i = 0; i < m.nodes.cols(); ++i) {
+    const NodeRef own = b.Owner(1, static_cast<std::int32_t>(i));
+    if (own.body != 0) continue;
+    ++shared;
+    EXPECT_EQ(s_split.soft_bodies[1].x.col(i), s_split.soft_bodies[0].x.col(own.node));
+    EXPECT_EQ(s_split.soft_bodies[1].v.col(i), s_split.soft_bodies[0].v.col(own.node));
+  }
+  EXPECT_GT(shared, 10);
+}
+
+// A penalty contact and a spring enter the implicit system and report their forces.
+TEST(SoftSystem, ContactAndSpringForces) {
+  Model model = CoarseBeam(2.0, 0.01);
+  State state = MakeInitialState(model);
+  SoftSystem sys;
+  sys.Build(model, state);
+  // Support every tip-face node from below at z >= -0.3 mm (free tip sags 0.72 mm).
+  ContactSet contacts;
+  const SoftBodyState& b = state.soft_bodies[0];
+  for (Eigen::Index i = 0; i < b.x.cols(); ++i) {
+    if (b.x_rest(0, i) < 100 - 1e-6) continue;
+    PointContact c;
+    c.index = 0;
+    c.nodes = {static_cast<std::int32_t>(i), -1, -1, -1};
+    c.weights = {1, 0, 0, 0};
+    c.normal = Vec3::UnitZ();
+    c.offset_mm = b.x_rest(2, i) - 0.3;
+    c.stiffness_n_per_mm = 50;
+    contacts.push_back(c);
+  }
+  for (int k = 0; k < 150; ++k) sys.Step(model, &contacts, nullptr, &state);
+  double total_n = 0;
+  for (const PointContact& c : contacts) total_n += c.force_n;
+  const double tip = BeamTipDeflection(state);
+  EXPECT_LT(tip, -0.29);
+  EXPECT_GT(tip, -0.32);
+  // The support carries part of the weight (beam weight 0.0981 N).
+  EXPECT_GT(total_n, 0.01);
+  EXPECT_LT(total_n, 0.0981);
+  // A spring lifting the tip centre node to 2 mm above its rest position.
+  SpringSet springs(1);
+  PointSpring& sp = springs[0];
+  sp.index = 0;
+  std::int32_t node = -1;
+  for (Eigen::Index i = 0; i < b.x.cols(); ++i) {
+    if (b.x_rest(0, i) > 100 - 1e-6 &&
+        (node < 0 || (b.x_rest.col(i) - Vec3(100, 5, 5)).norm() <
+                         (b.x_rest.col(node) - Vec3(100, 5, 5)).norm()))
+      node = static_cast<std::int32_t>(i);
+  }
+  sp.nodes = {node, -1, -1, -1};
+  sp.weights = {1, 0, 0, 0};
+  sp.anchor_mm = b.x_rest.col(node) + Vec3(0, 0, 2);
+  sp.stiffness_n_per_mm = 0.5;
+  for (int k = 0; k < 150; ++k) sys.Step(model, nullptr, &springs, &state);
+  const Vec3 d = state.soft_bodies[0].x.col(node) - sp.anchor_mm;
+  EXPECT_NEAR((sp.force_n + sp.stiffness_n_per_mm * d).norm(), 0, 1e-12);
+  EXPECT_GT(sp.force_n.z(), 0.05);  // lifts more than the beam weight's share
+  EXPECT_GT(state.soft_bodies[0].x(2, node) - b.x_rest(2, node), 0.0);
+}
+
+// ARKODE (backward Euler DIRK, one Newton step, CG inside) agrees with the built-in step.
+TEST(SoftSystem, ArkodeMatchesImplicitEuler) {
+  Model model = CoarseBeam(1.0, 0.001);
+  model.options.dt_s = 0.001;
+  model.solver.cg_tolerance = 1e-10;
+  model.solver.cg_max_iterations = 200;
+  State s_ie = MakeInitialState(model), s_ark = s_ie;
+  SoftSystem a, b;
+  a.Build(model, s_ie);
+  b.Build(model, s_ark);
+  Model model_ark = model;
+  model_ark.solver.integrator = Integrator::kArkode;
+  double max_tip = 0, max_diff = 0;
+  for (int k = 0; k < 60; ++k) {
+    a.Step(model, nullptr, nullptr, &s_ie);
+    const SoftStepStats st = b.Step(model_ark, nullptr, nullptr, &s_ark);
+    EXPECT_GT(st.cg_iterations, 0);
+    s_ie.time_s += model.options.dt_s;
+    s_ark.time_s += model.options.dt_s;
+    max_tip = std::max(max_tip, std::abs(BeamTipDeflection(s_ie)));
+    max_diff = std::max(max_diff, std::abs(BeamTipDeflection(s_ie) - BeamTipDeflection(s_ark)));
+  }
+  ASSERT_GT(max_tip, 0.05);
+  EXPECT_LT(max_diff, 0.01 * max_tip);
+  std::printf("ARKODE vs implicit Euler: max tip %.4f mm, max difference %.3g mm\n", max_tip,
+              max_diff);
+  // Same static equilibrium: settle with ARKODE at dt 20 ms and heavy damping.
+  Model settle = CoarseBeam(0.1, 0.1);
+  settle.solver.integrator = Integrator::kArkode;
+  State s = MakeInitialState(settle);
+  SoftSystem c;
+  c.Build(settle, s);
+  for (int k = 0; k < 100; ++k) c.Step(settle, nullptr, nullptr, &s);
+  const double static_tip = StaticTip(BeamPath("5"));
+  EXPECT_NEAR(BeamTipDeflection(s), static_tip, 0.005 * std::abs(static_tip));
+}
+
+// Threads 1 and 2 give bit-identical states.
+TEST(SoftSystem, ThreadCountDoesNotChangeBits) {
+  const Model model = MakeBeamModel(mesh::ReadTetMesh(BeamPath("2.5")), 0.1, 0.01);
+  State s1 = MakeInitialState(model), s2 = s1;
+  SoftSystem a, b;
+  SetThreadCount(1);
+  a.Build(model, s1);
+  for (int k = 0; k < 5; ++k) a.Step(model, nullptr, nullptr, &s1);
+  SetThreadCount(2);
+  b.Build(model, s2);
+  for (int k = 0; k < 5; ++k) b.Step(model, nullptr, nullptr, &s2);
+  SetThreadCount(1);
+  EXPECT_TRUE(BitwiseEqual(s1, s2));
+  EXPECT_NE(s1.soft_bodies[0].x, s1.soft_bodies[0].x_rest);
 }
 
 }  // namespace

@@ -39,6 +39,15 @@ enum class SystemProduct : std::uint8_t {
   kMatrixFree,  ///< element-by-element product R K_e R^T at every CG iteration
 };
 
+/// CG preconditioner.
+enum class Preconditioner : std::uint8_t {
+  kBlockJacobi,   ///< inverse 3x3 diagonal blocks of the current system matrix
+  kRestCholesky,  ///< "warped" rest factorisation: P^-1 = Rn K0^-1 Rn^T with K0 the sparse
+                  ///< LDLT of the system at rest orientation (refactored only after a
+                  ///< topology/rest change or a new dt) and Rn per-node rotations (polar of
+                  ///< the sum of the incident element rotations) of the current step
+};
+
 /// Timings (wall-clock, ms) and solver figures of one Step.
 struct SoftStepStats {
   double rotations_ms = 0;  ///< polar rotations + elastic forces
@@ -111,6 +120,8 @@ class SoftSystem {
   // ---- Queries ----
 
   void set_product(SystemProduct product) { product_ = product; }
+  void set_preconditioner(Preconditioner p) { preconditioner_ = p; }
+  Preconditioner preconditioner() const { return preconditioner_; }
   SystemProduct product() const { return product_; }
   /// Lumped mass of a node (kg); 0 when it has no alive, non-degenerate element.
   double NodeMass(int body, std::int32_t node) const;
@@ -178,6 +189,8 @@ class SoftSystem {
   void BuildPointTerms(const Model& model, const Eigen::VectorXd& x, ContactSet* contacts,
                        SpringSet* springs, bool add_forces);
   void BuildPreconditioner(double h);
+  void FactorRestSystem(double h);
+  void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const;
   void ApplyStiffness(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;  // Kh x (scaled)
   // Element-by-element sum_b scales[b] K_b x (free rows only).
   void ApplyElementStiffness(const Eigen::VectorXd& x, const std::vector<double>& scales,
@@ -202,10 +215,15 @@ class SoftSystem {
   // Step scratch (3 * slots_).
   Eigen::VectorXd x_, v_, f_, b_, dv_, tmp_;
   std::vector<Mat3> precond_;    // inverse diagonal blocks per slot
+  std::vector<Mat3> node_rot_;   // per slot rotation for the warped rest factor
   double h_ = 0;                 // step of the current system
   std::vector<double> kscales_;  // per body scale of K in the system
   std::vector<PointTerm> terms_;
   SystemProduct product_ = SystemProduct::kAssembled;
+  Preconditioner preconditioner_ = Preconditioner::kRestCholesky;
+  struct RestFactor;  // sparse LDLT of the rest-orientation system (Eigen, kept out of the header)
+  std::unique_ptr<RestFactor> rest_factor_;
+  bool rest_dirty_ = true;
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
