@@ -7,11 +7,11 @@
 namespace arthrosim::cli {
 
 void AddReservedCommands(CLI::App* app, int* exit_code) {
-  for (const char* name : {"score", "compare"}) {
-    auto* cmd = app->add_subcommand(name, std::string("(not implemented yet: scoring issue)"));
+  for (const char* name : {"score", "compare", "render", "bench", "serve"}) {
+    auto* cmd = app->add_subcommand(name, std::string("(reserved: not implemented yet)"));
     cmd->allow_extras();
     cmd->callback([name, exit_code] {
-      fmt::print(stderr, "arthrosim {}: not implemented yet (comes with the scoring issue)\n", name);
+      fmt::print(stderr, "arthrosim {}: not implemented yet\n", name);
       *exit_code = kExitBadInput;
     });
   }

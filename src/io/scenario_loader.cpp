@@ -33,7 +33,7 @@ int LineOf(const YAML::Node& node) { return node.Mark().is_null() ? 0 : node.Mar
   throw InputError(ctx.file, LineOf(node), field, message);
 }
 
-std::string Join(const std::string& parent, const std::string& key) {
+std::string FieldPath(const std::string& parent, const std::string& key) {
   return parent.empty() ? key : parent + "." + key;
 }
 
@@ -49,14 +49,14 @@ class Section {
       if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
         std::string list;
         for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        Fail(ctx, it->first, Join(field_, key), "unknown key (expected one of: " + list + ")");
+        Fail(ctx, it->first, FieldPath(field_, key), "unknown key (expected one of: " + list + ")");
       }
     }
   }
 
   bool Has(const char* key) const { return static_cast<bool>(node_[key]); }
   YAML::Node Get(const char* key) const { return node_[key]; }
-  std::string Field(const char* key) const { return Join(field_, key); }
+  std::string Field(const char* key) const { return FieldPath(field_, key); }
   const YAML::Node& node() const { return node_; }
   const Context& ctx() const { return ctx_; }
 

@@ -24,10 +24,20 @@ class InputError : public std::runtime_error {
  private:
   static std::string Format(const std::string& file, int line, const std::string& field,
                             const std::string& message) {
+    // Appended piecewise: GCC 12 warns (-Wrestrict, falsely) on "literal" + std::string here.
     std::string s = file.empty() ? std::string("<input>") : file;
-    if (line > 0) s += ":" + std::to_string(line);
-    if (!field.empty()) s += ": field '" + field + "'";
-    return s + ": " + message;
+    if (line > 0) {
+      s += ':';
+      s += std::to_string(line);
+    }
+    if (!field.empty()) {
+      s += ": field '";
+      s += field;
+      s += '\'';
+    }
+    s += ": ";
+    s += message;
+    return s;
   }
   std::string file_;
   int line_ = 0;

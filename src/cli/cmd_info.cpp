@@ -1,0 +1,76 @@
+// arthrosim info FILE: a summary of a scenario (.yaml), a mesh (.msh .vtk .obj .stl) or a run
+// (.h5): counts, bounds and units.
+#include <fmt/core.h>
+
+#include <filesystem>
+
+#include "arthrosim/core/error.h"
+#include "arthrosim/io/run_reader.h"
+#include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/mesh/mesh_io.h"
+#include "commands.h"
+
+namespace arthrosim::cli {
+namespace {
+
+std::string Bounds(const Points& p) {
+  if (p.cols() == 0) return "empty";
+  const Vec3 lo = p.rowwise().minCoeff(), hi = p.rowwise().maxCoeff();
+  return fmt::format("[{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] mm", lo.x(), hi.x(),
+                     lo.y(), hi.y(), lo.z(), hi.z());
+}
+
+void PrintScenario(const std::string& path) {
+  const Model m = io::LoadScenario(path);
+  fmt::print("scenario {} ({})\n  sha256 {}\n  dt {} s, duration {} s, seed {}, gravity [{}, {}, {}] mm/s^2\n",
+             m.name, path, m.scenario_sha256, m.options.dt_s, m.options.duration_s, m.options.seed,
+             m.options.gravity_mm_s2.x(), m.options.gravity_mm_s2.y(), m.options.gravity_mm_s2.z());
+  for (const SoftBodyModel& b : m.soft_bodies) {
+    fmt::print("  soft   {:24} {:6} nodes {:6} tets  E {} Pa  nu {}  rho {} kg/m^3  fixed {}  {}\n",
+               b.name, b.rest_mesh.nodes.cols(), b.rest_mesh.tets.size(), b.material.young_modulus_pa,
+               b.material.poisson_ratio, b.material.density_kg_m3, b.fixed_nodes.size(),
+               Bounds(b.rest_mesh.nodes));
+  }
+  for (const BoneModel& b : m.bones) {
+    fmt::print("  rigid  {:24} {:6} nodes {:6} tris  {}\n", b.name, b.surface.nodes.cols(),
+               b.surface.tris.size(), Bounds(b.surface.nodes));
+  }
+  for (const ThreadModel& t : m.threads) {
+    fmt::print("  thread {:24} {:6} nodes  diameter {} mm  {}\n", t.name, t.initial.nodes.cols(),
+               t.diameter_mm, Bounds(t.initial.nodes));
+  }
+  for (const InstrumentModel& i : m.instruments) {
+    fmt::print("  instrument {:20} {:16} portal {}\n", i.name, InstrumentKindName(i.kind), i.portal);
+  }
+  fmt::print("  {} portals, {} landmarks, {} regions, {} joins\n", m.portals.size(),
+             m.landmarks.size(), m.regions.size(), m.joins.size());
+}
+
+void PrintMesh(const std::string& path) {
+  const mesh::MeshData d = mesh::ReadMesh(path);
+  fmt::print("mesh {} (format {})\n  {} nodes, {} tets, {} triangles, {} lines, {} groups\n  bounds {}\n",
+             path, d.format, d.volume.nodes.cols(), d.volume.tets.size(), d.surface.tris.size(),
+             d.lines.edges.size(), d.groups.size(), Bounds(d.volume.nodes));
+}
+
+}  // namespace
+
+void AddInfoCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand("info", "Summarise a scenario, mesh or run file");
+  auto path = std::make_shared<std::string>();
+  cmd->add_option("file", *path, "Scenario (.yaml), mesh (.msh .vtk .obj .stl) or run (.h5)")
+      ->required();
+  cmd->callback([path, exit_code] {
+    const std::string ext = std::filesystem::path(*path).extension().string();
+    if (ext == ".yaml" || ext == ".yml") {
+      PrintScenario(*path);
+    } else if (ext == ".h5" || ext == ".hdf5") {
+      fmt::print("{}", io::Summarize(*path));
+    } else {
+      PrintMesh(*path);
+    }
+    *exit_code = kExitOk;
+  });
+}
+
+}  // namespace arthrosim::cli

@@ -1,0 +1,97 @@
+// The step, as a table of contents: each stage is one named function below, in order.
+#include "arthrosim/sim/step.h"
+
+#include <chrono>
+
+#include "arthrosim/core/units.h"
+#include "arthrosim/sim/tool_kinematics.h"
+
+namespace arthrosim::sim {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// Events describe one step only.
+void BeginStep(State* state, Workspace* ws) {
+  state->events.clear();
+  ws->soft_springs.clear();
+  ws->thread_springs.clear();
+}
+
+// Collision: contacts of tools, tissue, thread and bone at the start of the step, with the
+// tool sweep from last step's pose (no tunnelling).
+void DetectContacts(const Model& model, const State& state,
+                    const std::array<ToolState, kToolSlots>& prev_tools, Workspace* ws) {
+  const auto t0 = Clock::now();
+  collision::Detect(model, state, prev_tools, ws->collision_params, &ws->collision, &ws->contacts);
+  ws->timings.collision_ms = MsSince(t0);
+}
+
+// Soft tissue: one linearised implicit Euler step of every soft body (FEM + CG).
+void SolveSoftTissue(const Model& model, State* state, Workspace* ws) {
+  const auto t0 = Clock::now();
+  ws->timings.soft = ws->soft.Step(model, &ws->contacts.contacts, &ws->soft_springs, state);
+  ws->timings.soft_ms = MsSince(t0);
+}
+
+// Suture threads: implicit mass-spring chains with self-collision and the speed cap.
+void SolveThreads(const Model& model, State* state, Workspace* ws) {
+  const auto t0 = Clock::now();
+  physics::StepThreads(model.threads, model.options.dt_s, model.options.gravity_mm_s2,
+                       &ws->contacts.contacts, &ws->thread_springs, &state->threads, &ws->threads);
+  ws->timings.thread = ws->threads.last;
+  ws->timings.thread_ms = MsSince(t0);
+}
+
+// Forces on the instruments (haptic feedback, /tools/<name>/force), from the solved contacts.
+void AccumulateToolForces(const Workspace& ws, State* state) {
+  const std::array<Vec3, kToolSlots> f = collision::ToolForces(ws.contacts);
+  for (int slot = 0; slot < kToolSlots; ++slot) state->tools[slot].force_n = f[slot];
+}
+
+// Contact start/end events, by comparing this step's touching pairs with the last step's.
+void RecordContactEvents(const Model& model, const Workspace& ws, State* state) {
+  collision::UpdateContactEvents(model, *state, ws.contacts, &state->tool_contacts,
+                                 &state->events);
+}
+
+// Clock: step index and time are derived from the index so they never drift.
+void AdvanceTime(const Model& model, State* state) {
+  state->step += 1;
+  state->time_s = static_cast<double>(state->step) * model.options.dt_s;
+}
+
+}  // namespace
+
+void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
+  ws->soft.Build(model, state);
+  physics::InitThreadWorkspace(model.threads, &ws->threads);
+  ws->collision = collision::CollisionWorld{};
+  collision::SyncWorld(model, state, &ws->collision);
+}
+
+void Step(const Model& model, const InputFrame& input, State* state, Workspace* ws) {
+  const auto t0 = Clock::now();
+  BeginStep(state, ws);
+  const std::array<ToolState, kToolSlots> prev_tools = state->tools;
+  ApplyToolCommands(model, input, state);
+  ws->timings.kinematics_ms = MsSince(t0);
+  DetectContacts(model, *state, prev_tools, ws);
+  SolveSoftTissue(model, state, ws);
+  SolveThreads(model, state, ws);
+  AccumulateToolForces(*ws, state);
+  AdvanceTime(model, state);
+  RecordContactEvents(model, *ws, state);
+  ws->timings.total_ms = MsSince(t0);
+}
+
+FeedbackFrame Feedback(const State& state) {
+  FeedbackFrame f;
+  for (int slot = 0; slot < kToolSlots; ++slot) f.force_n[slot] = state.tools[slot].force_n;
+  return f;
+}
+
+}  // namespace arthrosim::sim

@@ -1,0 +1,177 @@
+#include "arthrosim/io/scenario_loader.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "arthrosim/core/error.h"
+
+namespace arthrosim::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A scratch folder with a one-tet VTK mesh and a triangle surface, for scenarios to point at.
+class ScenarioLoaderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("arthrosim_scenario_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    Write("block.vtk",
+          "# vtk DataFile Version 3.0\nblock\nASCII\nDATASET UNSTRUCTURED_GRID\n"
+          "POINTS 5 double\n0 0 0\n10 0 0\n0 10 0\n0 0 10\n10 10 10\n"
+          "CELLS 2 10\n4 0 1 2 3\n4 1 2 3 4\nCELL_TYPES 2\n10\n10\n");
+    Write("bone.obj",
+          "v 0 0 0\nv 10 0 0\nv 0 10 0\nv 0 0 10\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  void Write(const std::string& name, const std::string& text) {
+    std::ofstream(dir_ / name) << text;
+  }
+  std::string Path() const { return (dir_ / "scene.yaml").string(); }
+
+  static std::string Valid() {
+    return R"(name: test
+seed: 7
+time: {dt: 0.01, duration: 0.5}
+materials:
+  muscle: {young_modulus: 25000, poisson_ratio: 0.45, density: 1060, rayleigh_mass: 0.1}
+bodies:
+  - name: block
+    kind: soft
+    mesh: block.vtk
+    material: muscle
+    fixed: [base]
+  - name: bone
+    kind: rigid
+    mesh: bone.obj
+  - name: suture
+    kind: thread
+    thread: {start: [0, 0, 20], end: [30, 0, 20], nodes: 31, fixed_nodes: [0]}
+regions:
+  - {name: base, body: block, box: {min: [-1, -1, -1], max: [11, 11, 0.5]}}
+portals:
+  - {name: lateral, position: [50, 0, 0]}
+instruments:
+  - {name: grasper, kind: grasper, portal: lateral}
+landmarks:
+  - {name: tip, body: block, position: [0, 0, 10]}
+camera: {portal: lateral, position: [40, 0, 0], look_at: [0, 0, 0]}
+)";
+  }
+
+  // Loads `text` expecting an InputError; returns it.
+  InputError LoadError(const std::string& text) {
+    try {
+      LoadScenarioFromText(text, Path());
+    } catch (const InputError& e) {
+      return e;
+    }
+    ADD_FAILURE() << "expected an InputError for:\n" << text;
+    return InputError("", 0, "", "");
+  }
+
+  // Replaces the first occurrence of `from` in the valid scenario.
+  static std::string Edit(const std::string& from, const std::string& to) {
+    std::string s = Valid();
+    const auto at = s.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return s.replace(at, from.size(), to);
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(ScenarioLoaderTest, LoadsAValidScenario) {
+  const Model m = LoadScenarioFromText(Valid(), Path());
+  EXPECT_EQ(m.name, "test");
+  EXPECT_EQ(m.options.seed, 7u);
+  EXPECT_DOUBLE_EQ(m.options.dt_s, 0.01);
+  ASSERT_EQ(m.soft_bodies.size(), 1u);
+  EXPECT_EQ(m.soft_bodies[0].rest_mesh.tets.size(), 2u);
+  EXPECT_EQ(m.soft_bodies[0].fixed_nodes, (std::vector<std::int32_t>{0, 1, 2}));
+  EXPECT_DOUBLE_EQ(m.soft_bodies[0].material.young_modulus_pa, 25000);
+  ASSERT_EQ(m.bones.size(), 1u);
+  EXPECT_EQ(m.bones[0].surface.tris.size(), 4u);
+  ASSERT_EQ(m.threads.size(), 1u);
+  EXPECT_EQ(m.threads[0].initial.nodes.cols(), 31);
+  EXPECT_DOUBLE_EQ(m.threads[0].initial.nodes(0, 30), 30.0);
+  EXPECT_EQ(m.threads[0].fixed_nodes, std::vector<std::int32_t>{0});
+  EXPECT_EQ(m.instruments[0].kind, InstrumentKind::kGrasper);
+  EXPECT_EQ(m.FindLandmark("tip"), 0);
+  // The camera looks from (40,0,0) toward the origin: +z of its frame is -x of the world.
+  const Vec3 forward = m.camera.initial_pose.orientation * Vec3::UnitZ();
+  EXPECT_NEAR((forward - Vec3(-1, 0, 0)).norm(), 0, 1e-12);
+  EXPECT_EQ(m.scenario_sha256.size(), 64u);
+}
+
+TEST_F(ScenarioLoaderTest, UnknownKeyNamesFileLineAndField) {
+  const InputError e = LoadError(Edit("seed: 7", "seed: 7\nsede: 8"));
+  EXPECT_EQ(e.file(), Path());
+  EXPECT_EQ(e.line(), 3);
+  EXPECT_EQ(e.field(), "sede");
+}
+
+TEST_F(ScenarioLoaderTest, NestedUnknownKeyIsAnError) {
+  const InputError e = LoadError(Edit("rayleigh_mass: 0.1", "rayleigh_mas: 0.1"));
+  EXPECT_EQ(e.field(), "materials.muscle.rayleigh_mas");
+  EXPECT_EQ(e.line(), 5);
+}
+
+TEST_F(ScenarioLoaderTest, MissingRequiredField) {
+  const InputError e = LoadError(Edit("density: 1060, ", ""));
+  EXPECT_EQ(e.field(), "materials.muscle.density");
+  EXPECT_NE(std::string(e.what()).find("missing"), std::string::npos);
+}
+
+TEST_F(ScenarioLoaderTest, WrongType) {
+  const InputError e = LoadError(Edit("young_modulus: 25000", "young_modulus: soft"));
+  EXPECT_EQ(e.field(), "materials.muscle.young_modulus");
+  EXPECT_EQ(e.line(), 5);
+}
+
+TEST_F(ScenarioLoaderTest, NonPhysicalValues) {
+  EXPECT_EQ(LoadError(Edit("young_modulus: 25000", "young_modulus: 0")).field(),
+            "materials.muscle.young_modulus");
+  EXPECT_EQ(LoadError(Edit("young_modulus: 25000", "young_modulus: -5")).field(),
+            "materials.muscle.young_modulus");
+  EXPECT_EQ(LoadError(Edit("poisson_ratio: 0.45", "poisson_ratio: 0.5")).field(),
+            "materials.muscle.poisson_ratio");
+  EXPECT_EQ(LoadError(Edit("poisson_ratio: 0.45", "poisson_ratio: -0.1")).field(),
+            "materials.muscle.poisson_ratio");
+  EXPECT_EQ(LoadError(Edit("dt: 0.01", "dt: 0")).field(), "time.dt");
+  EXPECT_EQ(LoadError(Edit("dt: 0.01", "dt: -0.02")).field(), "time.dt");
+  EXPECT_EQ(LoadError(Edit("dt: 0.01", "dt: .nan")).field(), "time.dt");
+}
+
+TEST_F(ScenarioLoaderTest, MissingMeshFile) {
+  const InputError e = LoadError(Edit("mesh: block.vtk", "mesh: nowhere.vtk"));
+  EXPECT_EQ(e.field(), "bodies[0].mesh");
+  EXPECT_EQ(e.line(), 9);
+  EXPECT_NE(std::string(e.what()).find("nowhere.vtk"), std::string::npos);
+}
+
+TEST_F(ScenarioLoaderTest, UnknownReferences) {
+  EXPECT_EQ(LoadError(Edit("material: muscle", "material: bone")).field(), "bodies[0].material");
+  EXPECT_EQ(LoadError(Edit("fixed: [base]", "fixed: [top]")).field(), "bodies[0].fixed[0]");
+  EXPECT_EQ(LoadError(Edit("kind: grasper", "kind: spoon")).field(), "instruments[0].kind");
+  EXPECT_EQ(LoadError(Edit("portal: lateral}", "portal: medial}")).field(), "instruments[0].portal");
+  EXPECT_EQ(LoadError(Edit("kind: rigid", "kind: liquid")).field(), "bodies[1].kind");
+}
+
+TEST_F(ScenarioLoaderTest, YamlSyntaxErrorHasALine) {
+  const InputError e = LoadError(Edit("seed: 7", "seed: [7"));
+  EXPECT_GT(e.line(), 0);
+}
+
+TEST_F(ScenarioLoaderTest, EmptyRegionIsAnError) {
+  const InputError e = LoadError(Edit("max: [11, 11, 0.5]", "max: [-0.5, -0.5, -0.5]"));
+  EXPECT_EQ(e.field(), "regions[0].box");
+}
+
+}  // namespace
+}  // namespace arthrosim::io
