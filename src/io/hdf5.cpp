@@ -5,7 +5,7 @@
 namespace arthrosim::io::h5 {
 namespace {
 
-// Keeps the innermost message of the error stack (walking downward it comes first): it names
+// Keeps the innermost message of the error stack (walking upward it comes first): it names
 // the real cause, e.g. "unable to open file: ... errno = 2 ...".
 herr_t WalkError(unsigned n, const H5E_error2_t* err, void* out) {
   auto* msg = static_cast<std::string*>(out);
@@ -15,7 +15,7 @@ herr_t WalkError(unsigned n, const H5E_error2_t* err, void* out) {
 
 std::string LibraryMessage() {
   std::string msg;
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, WalkError, &msg);
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, WalkError, &msg);
   H5Eclear2(H5E_DEFAULT);
   return msg;
 }

@@ -1,7 +1,8 @@
 #pragma once
 // RunReader: reads a run file written by RunWriter (docs/hdf5-layout.md), also while it is being
 // written or after the writer was killed (SWMR read). Rebuilds the State of any frame; the
-// per-frame index arrays are cached so that a frame costs a few hyperslab reads.
+// per-frame index arrays are cached so that a frame costs a few hyperslab reads. HDF5 refuses to
+// open one file for SWMR write and SWMR read in the same process: read a live run from another.
 #include <cstdint>
 #include <memory>
 #include <string>
