@@ -65,7 +65,9 @@ void AddInfoCommand(CLI::App* app, int* exit_code) {
     if (ext == ".yaml" || ext == ".yml") {
       PrintScenario(*path);
     } else if (ext == ".h5" || ext == ".hdf5") {
-      fmt::print("{}", io::Summarize(*path));
+      std::string text = io::Summarize(*path);
+      if (!text.empty() && text.back() != '\n') text += '\n';
+      fmt::print("{}", text);
     } else {
       PrintMesh(*path);
     }

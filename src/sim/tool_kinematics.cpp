@@ -24,7 +24,10 @@ void ApplyToolCommands(const Model& model, const InputFrame& input, State* state
                        "instrument index " + std::to_string(cmd.instrument) + " is not in the scenario");
     }
     if (cmd.instrument != tool.instrument) {
-      state->events.push_back(Event{state->step, state->time_s, "tool_change",
+      // Events carry the step and time of the state they belong to: the end of this step.
+      const std::int64_t step = state->step + 1;
+      state->events.push_back(Event{step, static_cast<double>(step) * model.options.dt_s,
+                                    "tool_change",
                                     InstrumentName(model, cmd.instrument),
                                     "", "slot" + std::to_string(slot) + " from '" +
                                             InstrumentName(model, tool.instrument) + "'",

@@ -51,13 +51,20 @@ TEST(StepTest, InstrumentExchangeIsAnEvent) {
   State s = MakeInitialState(m);
   Workspace ws;
   BuildWorkspace(m, s, &ws);
+  auto tool_changes = [&s] {
+    std::vector<Event> out;
+    for (const Event& e : s.events) {
+      if (e.kind == "tool_change") out.push_back(e);
+    }
+    return out;
+  };
   for (int k = 1; k <= 3; ++k) Step(m, Input(m, k), &s, &ws);
-  ASSERT_EQ(s.events.size(), 1u);
-  EXPECT_EQ(s.events[0].kind, "tool_change");
-  EXPECT_EQ(s.events[0].tool, "grasper");
+  ASSERT_EQ(tool_changes().size(), 1u);
+  EXPECT_EQ(tool_changes()[0].tool, "grasper");
+  EXPECT_EQ(tool_changes()[0].step, 3);  // the step from 2 to 3: belongs to state 3
   EXPECT_EQ(s.tools[0].instrument, m.FindInstrument("grasper"));
   Step(m, Input(m, 4), &s, &ws);
-  EXPECT_TRUE(s.events.empty());
+  EXPECT_TRUE(tool_changes().empty());
 }
 
 TEST(StepTest, BitIdenticalForOneAndTwoThreads) {
