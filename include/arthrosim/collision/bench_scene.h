@@ -1,7 +1,8 @@
 #pragma once
 // Timing of the collision stage on a full scene, for `arthrosim bench` and Google Benchmark.
-// Wall-clock time is measured here only; it never influences a simulation result.
+// Time is measured here only (thread CPU time); it never influences a simulation result.
 #include <cstdint>
+#include <string>
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/mesh/tet_mesh.h"
@@ -21,15 +22,21 @@ Model MakeBenchmarkModel();
 
 /// Collision stage figures over a run.
 struct CollisionBenchResult {
-  double median_ms = 0;       ///< median wall time of Detect per step, ms
+  double median_ms = 0;       ///< median thread CPU time of Detect per step, ms
   double p90_ms = 0;          ///< 90th percentile, ms
   double mean_contacts = 0;   ///< contacts per step
   std::int64_t rebuilds = 0;  ///< tree builds (first step + topology changes)
 };
 
-/// Runs `steps` collision stages on `model` (any scenario: tools with instruments 0 and 1 are
-/// inserted, moved at 100 mm/s with dt = 20 ms through the scene's bounding box, soft bodies
-/// are deformed by a small travelling wave) and returns the timing. Deterministic workload.
+/// Runs `steps` collision stages on `model` (any scenario; made for scenarios/bench_full.yaml):
+/// thread 0 is laid along x on the top surface of the tendon (the soft body named "*tendon*",
+/// else body 0), a grasper (slot 0) and a shaver (slot 1) (else instruments 0 and 1) aimed from
+/// their portals press 0.5 mm into that surface and cross the thread along y at 100 mm/s
+/// (dt = 20 ms), the soft bodies carry a 0.3 mm travelling wave. Deterministic workload.
 CollisionBenchResult BenchmarkCollision(const Model& model, int steps);
+
+/// The figures as `key=value` lines for `arthrosim bench`, the first one
+/// `collision_ms_median=<ms>`.
+std::string FormatCollisionBench(const CollisionBenchResult& r);
 
 }  // namespace arthrosim::collision
