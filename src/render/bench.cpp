@@ -1,5 +1,6 @@
 #include "arthrosim/render/bench.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -13,6 +14,28 @@
 #include "arthrosim/render/video_sink.h"
 
 namespace arthrosim::render {
+
+State MakeBenchmarkState(const Model& model) {
+  State state = MakeInitialState(model);
+  SceneScope scope;
+  scope.pose = state.camera.pose;
+  scope.lens_angle_rad = model.camera.lens_angle_deg * 3.14159265358979323846 / 180;
+  const ViewFrame f = ScopeViewFrame(scope);
+  const Vec3 right = f.forward.cross(f.up);
+  const int n = std::min<int>(kToolSlots, static_cast<int>(model.instruments.size()));
+  for (int slot = 0; slot < n; ++slot) {
+    const double side = slot == 0 ? 1.0 : -1.0;
+    ToolState& tool = state.tools[slot];
+    tool.instrument = slot;
+    tool.pose.position_mm = f.eye + (15.0 + 5.0 * slot) * f.forward + 4.0 * side * right;
+    // enter from the side of the image, pointing across the view and away from the lens
+    const Vec3 dir = (f.forward - 1.2 * side * right).normalized();
+    tool.pose.orientation = Quat::FromTwoVectors(Vec3::UnitZ(), dir);
+    tool.jaw = 0.5;
+  }
+  if (n > 0) state.tools[0].force_n = Vec3(0, 0, 2.0);
+  return state;
+}
 
 double MeasureRenderFps(const Model& model, const State& state, int width, int height, int frames,
                         bool with_encoding) {

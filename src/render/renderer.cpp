@@ -129,6 +129,7 @@ struct Renderer::Impl {
     GLint base_vertex;
   };
   std::vector<Range> ranges;
+  std::vector<std::size_t> order;  // draw order: near layers first so depth tests cull more
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;
   std::vector<unsigned char> readback;
@@ -154,6 +155,26 @@ struct Renderer::Impl {
       vertices.insert(vertices.end(), m.vertices.begin(), m.vertices.end());
       indices.insert(indices.end(), m.indices.begin(), m.indices.end());
     }
+    auto rank = [](MeshLayer l) {
+      switch (l) {
+        case MeshLayer::kInstrument:
+          return 0;
+        case MeshLayer::kThread:
+          return 1;
+        case MeshLayer::kSoftTissue:
+          return 2;
+        case MeshLayer::kBone:
+          return 3;
+        case MeshLayer::kScope:
+          return 4;
+      }
+      return 5;
+    };
+    order.resize(scene.meshes.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return rank(scene.meshes[a].layer) < rank(scene.meshes[b].layer);
+    });
     gl.BindVertexArray(vao);
     gl.BindBuffer(GL_ARRAY_BUFFER, vbo);
     gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(Vertex)),
@@ -202,7 +223,7 @@ struct Renderer::Impl {
     gl.Uniform1i(mu.spot, scope_light ? 1 : 0);
     gl.Uniform1f(mu.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
     gl.BindVertexArray(vao);
-    for (std::size_t i = 0; i < scene.meshes.size(); ++i) {
+    for (const std::size_t i : order) {
       const SceneMesh& m = scene.meshes[i];
       if (ranges[i].count == 0 || (scope_light && !m.visible_in_scope)) continue;
       const SceneMaterial& mat = m.material;
@@ -225,7 +246,7 @@ struct Renderer::Impl {
         std::max(2, static_cast<int>(std::lround(spec.field_stop * std::min(vp.w, vp.h))));
     // texture resolution matching the output at the image centre, where the fisheye
     // magnifies most relative to the rectilinear render
-    const double centre_gain = (1.0 - spec.distortion) + spec.distortion * tan_max / half;
+    const double centre_gain = 1.0 + spec.scope_detail * spec.distortion * (tan_max / half - 1.0);
     const int tex = std::max(2, static_cast<int>(std::ceil(diameter * centre_gain)));
     EnsureFbo(tex);
 
@@ -255,7 +276,12 @@ struct Renderer::Impl {
     gl.Uniform1f(pu.tan_max, float(tan_max));
     gl.Uniform1f(pu.k, float(spec.distortion));
     gl.BindVertexArray(post_vao);
+    // only the circle's bounding square: the rest is already black
+    const int cx = vp.x + vp.w / 2, cy = vp.y + vp.h / 2, half_box = diameter / 2 + 2;
+    glScissor(cx - half_box, cy - half_box, 2 * half_box, 2 * half_box);
+    glEnable(GL_SCISSOR_TEST);
     glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDisable(GL_SCISSOR_TEST);
   }
 
   void RenderOverview(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
@@ -384,9 +410,11 @@ void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
   }
   if (!(spec.field_stop > 0 && spec.field_stop <= 1) ||
       !(spec.distortion >= 0 && spec.distortion <= 1) || !(spec.light_ref_mm > 0) ||
+      !(spec.scope_detail >= 0 && spec.scope_detail <= 1) ||
       !(spec.overview_fov_deg > 1 && spec.overview_fov_deg < 170)) {
     throw std::invalid_argument(
-        "ViewSpec: expected field_stop in (0,1], distortion in [0,1], light_ref_mm > 0, "
+        "ViewSpec: expected field_stop in (0,1], distortion in [0,1], scope_detail in [0,1], "
+        "light_ref_mm > 0, "
         "overview_fov_deg in (1,170)");
   }
   Impl& s = *impl_;

@@ -94,6 +94,13 @@ void AppendBones(const Model& model, const State& state, Scene* scene) {
     mesh.layer = MeshLayer::kBone;
     mesh.material = TissueMaterial(mesh.name, true);
     ComputeVertexNormals(&mesh);
+    // subtle grain of the bone surface: a smooth, deterministic function of position
+    for (Vertex& v : mesh.vertices) {
+      const double g =
+          std::sin(1.3 * v.pos[0] + 0.7 * v.pos[2]) * std::sin(1.1 * v.pos[1] - 0.9 * v.pos[0]) +
+          0.5 * std::sin(2.9 * v.pos[2] + 2.3 * v.pos[1]);
+      v.uv[0] = static_cast<float>(0.95 + 0.035 * g);
+    }
     // burred areas: how far a vertex moved from its initial place (same topology only)
     if (now.nodes.cols() == initial.nodes.cols()) {
       std::vector<std::int32_t> remap(now.nodes.cols(), -1);

@@ -25,7 +25,8 @@ void main() {
 
 // Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
 // fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
-// overview: a headlight without fall-off (u_ref2 = 0). Patterns: 1 braided suture, 2 bone.
+// overview: a headlight without fall-off (u_ref2 = 0). Patterns: 1 braided suture, 2 bone
+// (uv.x = albedo grain factor; procedural pits only where burred, to keep fragments cheap).
 inline constexpr const char* kMeshFragment = R"(#version 330 core
 in vec3 v_pos;
 in vec3 v_normal;
@@ -71,7 +72,7 @@ void main() {
     float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);
     if (a < 0.16 || b < 0.08) albedo = vec3(0.93, 0.93, 0.90);
   } else if (u_pattern == 2) {
-    albedo *= 0.93 + 0.07 * Noise(v_pos * 1.3);
+    albedo *= v_uv.x;  // per-vertex grain (BuildScene), cheaper than per-fragment noise
     if (v_rough > 0.0) {
       // burred: bleeding cancellous bone, pitted, dull
       float pits = Noise(v_pos * 5.0);
@@ -85,17 +86,20 @@ void main() {
   vec3 to_light = u_light - v_pos;
   float d2 = max(dot(to_light, to_light), 1e-6);
   vec3 l = to_light * inversesqrt(d2);
-  float irradiance = u_ref2 > 0.0 ? min(u_ref2 / d2, 3.0) : 1.0;
+  float irradiance = u_ref2 > 0.0 ? min(u_ref2 / d2, 4.0) : 1.0;
   if (u_spot != 0) {
     float c = max(dot(-l, u_spot_dir), 0.0);
     irradiance *= 0.3 + 0.7 * c * c;
   }
   float diffuse = max(dot(n, l), 0.0);
   vec3 h = normalize(l + view);
-  float highlight = spec * pow(max(dot(n, h), 0.0), u_shininess);
+  // Schlick's rational form of pow(t, shininess): same highlight, far cheaper on llvmpipe
+  float t = max(dot(n, h), 0.0);
+  float highlight = spec * t / (u_shininess - u_shininess * t + t);
   vec3 spec_color = mix(vec3(1.0), albedo, u_metal);
   vec3 color = albedo * (u_ambient + irradiance * diffuse) + irradiance * highlight * spec_color;
-  o_color = vec4(clamp(color, 0.0, 1.0), 1.0);
+  // soft shoulder instead of clipping (the scope's auto-exposure): linear-ish below 0.5
+  o_color = vec4(1.0 - exp(-1.4 * color), 1.0);
 }
 )";
 

@@ -5,6 +5,11 @@
 
 namespace arthrosim::render {
 
+/// The initial state of `model` with its first two instruments inserted in front of the scope
+/// (tips 15-20 mm along the view direction, jaws half open, 2 N on slot 0), so a render
+/// benchmark draws what a surgeon sees during a repair.
+State MakeBenchmarkState(const Model& model);
+
 /// Frames per second of BuildScene + Render (scope view, overlay on) at width x height over
 /// `frames` frames after two warm-up frames, wall clock; with_encoding adds the ffmpeg encode
 /// (x264 veryfast, 2 threads) of every frame to a temporary MP4 that is deleted afterwards.

@@ -29,6 +29,8 @@ struct ViewSpec {
   int height = 480;              ///< output pixels (>= 16)
   double field_stop = 0.95;      ///< image-circle diameter / image height, in (0, 1]
   double distortion = 1.0;       ///< 0 rectilinear ... 1 equidistant fisheye (barrel)
+  double scope_detail = 0.25;    ///< 0 scope texture = image circle ... 1 matches the centre
+                                 ///< magnification of the fisheye (sharper, ~2x the pixels)
   double light_ref_mm = 20.0;    ///< distance at which the scope light gives unit irradiance
   double overview_fov_deg = 35;  ///< vertical field of view of the overview camera
   bool overlay = true;           ///< draw time, tools, force bars and plan text
