@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <unistd.h>
 
@@ -66,6 +68,19 @@ double MeasureRenderFps(const Model& model, const State& state, int width, int h
   std::error_code ec;
   std::filesystem::remove(path, ec);
   return frames / seconds;
+}
+
+std::string RenderBenchReport(const Model& model, const State& state, int frames) {
+  std::string out;
+  for (const auto& [w, h] : {std::pair{640, 480}, std::pair{1280, 720}}) {
+    const std::string size = std::to_string(w) + "x" + std::to_string(h);
+    char line[128];
+    std::snprintf(line, sizeof line, "render_fps_%s=%.1f\nvideo_fps_%s=%.1f\n", size.c_str(),
+                  MeasureRenderFps(model, state, w, h, frames, false), size.c_str(),
+                  MeasureRenderFps(model, state, w, h, frames, true));
+    out += line;
+  }
+  return out;
 }
 
 }  // namespace arthrosim::render

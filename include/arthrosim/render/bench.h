@@ -1,5 +1,7 @@
 #pragma once
 // Throughput figures for `arthrosim bench --render`.
+#include <string>
+
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 
@@ -16,5 +18,9 @@ State MakeBenchmarkState(const Model& model);
 /// @throws RenderError if the renderer or ffmpeg is unavailable.
 double MeasureRenderFps(const Model& model, const State& state, int width, int height, int frames,
                         bool with_encoding);
+
+/// Lines for `arthrosim bench --render`: render_fps_640x480=, video_fps_640x480=,
+/// render_fps_1280x720=, video_fps_1280x720= (one decimal), `frames` frames each.
+std::string RenderBenchReport(const Model& model, const State& state, int frames);
 
 }  // namespace arthrosim::render
