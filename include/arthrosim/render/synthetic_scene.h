@@ -9,7 +9,7 @@ namespace arthrosim::render {
 
 /// Size knobs of the synthetic scene.
 struct SyntheticSceneSize {
-  int bone_subdivisions = 32;  ///< UV-sphere rings per bone (about 4 * n^2 triangles per bone)
+  int bone_subdivisions = 28;  ///< UV-sphere rings per bone (4 n (n - 1) triangles per bone)
   int tendon_cells_x = 22;     ///< hexahedral cells (5 tets each) of the tendon slab
   int tendon_cells_y = 15;
   int tendon_cells_z = 2;
