@@ -1,0 +1,114 @@
+#pragma once
+// Suture threads as implicit mass-spring chains (paper section II: nodes joined by springs,
+// node speed capped against haptic jitter).
+//
+// Each thread is a chain of nodes 0-1-...-n-1 with lumped masses (rho * A * L / 2 per segment
+// end). Energy terms: axial springs k = EA / L0 per segment, a quadratic discrete bending energy
+// 0.5 * EI / Lbar * |e_i / L_i - e_(i-1) / L_(i-1)|^2 (rotation invariant, exact for a straight
+// rest shape and inextensible segments, constant Hessian), gravity, mass-proportional damping,
+// one-sided penalty contacts (PointContact), springs to anchors (PointSpring), and segment-segment
+// penalty contacts within and between threads at distance (d_a + d_b) / 2.
+//
+// Time stepping is backward Euler written as the minimisation of the incremental potential
+//   E(x) = sum_i m_i [ (1 + alpha dt) |x_i - x0_i|^2 / (2 dt^2) - (x_i - x0_i).v0_i / dt
+//                      - g.(x_i - x0_i) ] + U(x),   v1 = (x1 - x0) / dt,
+// solved by Newton (sparse SimplicialLDLT) with an Armijo line search, so every iterate lowers
+// E and a step cut short by the iteration limit is still stable. The first iterate is the
+// linearised backward Euler step. The spring Hessian includes the geometric term
+// k (1 - L0 / l)(I - u u^T) in tension and drops it in compression (positive definite matrix).
+// A braid buckles instead of resisting compression: axial stiffness in compression is a small
+// fraction of EA. Newton converges slowly on a slack, nearly inextensible chain, so after the
+// solve a strain limit (Gauss-Seidel, Provot 1995) shortens any segment stretched beyond
+// max_strain (1 %, far above the elastic strain of real pulls: 1 N -> 0.02 %).
+//
+// Speed cap (paper: anti-jitter limit): a one-sided penalty inside the solve keeps each node
+// within max_speed dt of its start (so the chain keeps its length while slowed), and the stored
+// velocity is clamped to max_speed.
+//
+// Collision: a sorted sweep-and-prune over segment boxes (keys: min x, then segment id), exact
+// segment-segment closest points, contacts linearised with normal and closest-point parameters
+// frozen for the step. After each solve the motion x0 -> x1 is tested continuously (cubic
+// coplanarity roots + sampling); pairs that come too close get a contact and the step is
+// re-solved. If a crossing survives max_ccd_rounds, every thread involved is reverted to x0
+// (velocity 0) until no pair crosses: x0 is crossing-free, so this is a guarantee, at the price
+// of a momentary stick (only seen when a pull far beyond the suture's strength drags one
+// thread through another).
+//
+// Units: mm, s, kg; force mN. Model fields in N (EA), N*mm^2 (EI), N/mm are converted here.
+#include <cstdint>
+#include <vector>
+
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+#include "arthrosim/physics/contact.h"
+
+namespace arthrosim::physics {
+
+/// Solver settings for threads that the Model does not carry (defaults used by the sim).
+struct ThreadSolverParams {
+  double contact_stiffness_n_per_mm = 100.0;  ///< segment-segment penalty, N/mm
+  double contact_margin_factor =
+      1.0;  ///< pairs within (1 + f) * contact distance at x0 get a contact
+  int max_newton_iterations = 8;
+  double max_strain = 0.01;  ///< strain limit applied after the solve (FiberWire fails at ~5 %)
+  int strain_limit_passes = 100;      ///< Gauss-Seidel passes of the strain limit
+  double newton_tolerance_mm = 1e-7;  ///< stop when the largest Newton update is below this
+  int max_ccd_rounds = 3;             ///< re-solves after continuous detection
+  int ccd_samples = 8;                ///< distance samples per step in the swept test
+  double ccd_close_fraction = 0.5;  ///< swept distance below this * contact distance adds a contact
+  double crossing_tolerance_mm = 1e-4;  ///< distance at a coplanarity root counted as crossing
+  double compression_stiffness_fraction =
+      0.01;  ///< axial stiffness in compression / EA (a braid buckles)
+  double speed_barrier_stiffness_n_per_mm = 100.0;  ///< penalty on moving more than vmax dt, N/mm
+  double exclusion_factor =
+      1.5;  ///< same-thread pairs closer than this * d along the rest arc are skipped
+};
+
+/// Immutable per-thread data derived from the ThreadModel (lives in the sim Workspace).
+struct ThreadRest {
+  std::vector<double> rest_length_mm;  ///< per segment i = (node i, node i+1), mm
+  std::vector<double> arc_mm;          ///< rest arc length from node 0 to node i, mm
+  std::vector<double> mass_kg;         ///< lumped mass per node, kg
+  std::vector<std::uint8_t> fixed;     ///< 1 if the node is in ThreadModel::fixed_nodes
+};
+
+/// What the last StepThreads did (diagnostics, benchmarks).
+struct ThreadStepStats {
+  int newton_iterations = 0;   ///< over all solves of the step
+  int solves = 0;              ///< 1 + re-solves after continuous detection
+  int contact_pairs = 0;       ///< segment-segment contacts in the final solve
+  int frozen_nodes = 0;        ///< nodes reverted by the crossing fail-safe
+  int speed_capped_nodes = 0;  ///< nodes whose stored velocity was clamped to the cap
+};
+
+/// Derived data and scratch for all threads; build once with InitThreadWorkspace.
+struct ThreadWorkspace {
+  ThreadSolverParams params;
+  std::vector<ThreadRest> rest;  ///< parallel to Model::threads
+  ThreadStepStats last;
+};
+
+/// Rest data of one thread. Throws std::invalid_argument if the mesh is not a chain 0-1-...-n
+/// (edges, when given, must be exactly (i, i+1)) or a segment has zero length.
+ThreadRest MakeThreadRest(const ThreadModel& model);
+
+/// Fills ws->rest for every thread of the model (keeps ws->params).
+void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspace* ws);
+
+/// Advances every thread by dt_s (s) under gravity (mm/s^2), the PointContacts and PointSprings
+/// whose target is kThread (others are ignored), self- and thread-thread collision. Fills the
+/// force outputs of the thread contacts/springs (N, from the end-of-step positions). Fixed nodes
+/// keep their position with zero velocity; dead nodes (node_alive == 0) are left untouched.
+void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
+                 ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
+                 ThreadWorkspace* ws);
+
+/// Kinetic + stretch + bending + gravity energy of one thread (alive nodes), kg*mm^2/s^2 (uJ);
+/// gravity potential measured from z = 0 along -gravity.
+double ThreadEnergy(const ThreadModel& model, const ThreadRest& rest, const ThreadState& state,
+                    const Vec3& gravity_mm_s2);
+
+/// Current length of the alive part of the chain, mm.
+double ThreadLength(const ThreadState& state);
+
+}  // namespace arthrosim::physics
