@@ -63,20 +63,11 @@ Surface MakeSurface(std::vector<mesh::Tri> tris) {
   return s;
 }
 
-struct TriangleBvh::Impl {
-  fcl::BVHModel<fcl::AABBd> model;
-  std::vector<fcl::Vector3d> buffer;
-  int tri_count = 0;
-};
-
-TriangleBvh::TriangleBvh() : impl_(std::make_unique<Impl>()) {}
-TriangleBvh::~TriangleBvh() = default;
-TriangleBvh::TriangleBvh(TriangleBvh&&) noexcept = default;
-TriangleBvh& TriangleBvh::operator=(TriangleBvh&&) noexcept = default;
-
 void TriangleBvh::Build(const std::vector<Vec3>& vertices, const std::vector<mesh::Tri>& tris) {
-  impl_ = std::make_unique<Impl>();
-  impl_->tri_count = static_cast<int>(tris.size());
+  nodes_.clear();
+  leaf_of_.assign(tris.size(), -1);
+  tris_ = tris;
+  depth_ = 0;
   if (tris.empty()) return;
   std::vector<fcl::Triangle> ft;
   ft.reserve(tris.size());
@@ -84,69 +75,79 @@ void TriangleBvh::Build(const std::vector<Vec3>& vertices, const std::vector<mes
     ft.emplace_back(static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
                     static_cast<std::size_t>(t[2]));
   }
-  impl_->buffer.assign(vertices.begin(), vertices.end());
-  if (impl_->model.beginModel(static_cast<int>(ft.size()), static_cast<int>(vertices.size())) !=
+  std::vector<fcl::Vector3d> buffer(vertices.begin(), vertices.end());
+  fcl::BVHModel<fcl::AABBd> model;
+  if (model.beginModel(static_cast<int>(ft.size()), static_cast<int>(vertices.size())) !=
           fcl::BVH_OK ||
-      impl_->model.addSubModel(impl_->buffer, ft) != fcl::BVH_OK ||
-      impl_->model.endModel() != fcl::BVH_OK) {
+      model.addSubModel(buffer, ft) != fcl::BVH_OK || model.endModel() != fcl::BVH_OK) {
     throw std::runtime_error("collision: FCL failed to build a BVH");
   }
-}
-
-void TriangleBvh::Refit(const std::vector<Vec3>& vertices) {
-  if (impl_->tri_count == 0) return;
-  std::copy(vertices.begin(), vertices.end(), impl_->buffer.begin());
-  if (impl_->model.beginReplaceModel() != fcl::BVH_OK ||
-      impl_->model.replaceSubModel(impl_->buffer) != fcl::BVH_OK ||
-      impl_->model.endReplaceModel(true, true) != fcl::BVH_OK) {
-    throw std::runtime_error("collision: FCL failed to refit a BVH");
+  nodes_.resize(static_cast<std::size_t>(model.getNumBVs()));
+  std::vector<int> depth(nodes_.size(), 0);
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const auto& b = model.getBV(static_cast<int>(i));
+    Node& n = nodes_[i];
+    n.box = ToBox(b.bv);
+    if (b.isLeaf()) {
+      n.tri = b.primitiveId();
+      leaf_of_.at(static_cast<std::size_t>(n.tri)) = static_cast<std::int32_t>(i);
+    } else {
+      n.left = b.leftChild();
+      n.right = b.rightChild();
+      // The reverse-sweep refit needs children after their parent (FCL allocates them so).
+      if (n.left <= static_cast<int>(i) || n.right <= static_cast<int>(i)) {
+        throw std::runtime_error("collision: unexpected BVH node order");
+      }
+      depth[n.left] = depth[n.right] = depth[i] + 1;
+      depth_ = std::max(depth_, depth[i] + 1);
+    }
   }
+  for (std::int32_t l : leaf_of_) {
+    if (l < 0) throw std::runtime_error("collision: BVH lost a triangle");
+  }
+  Refit(vertices);  // boxes from our own fit, so a built and a refit tree agree bit for bit
 }
 
-bool TriangleBvh::empty() const { return impl_->tri_count == 0; }
-
-Box TriangleBvh::Bounds() const {
-  if (empty()) return Box{};
-  return ToBox(impl_->model.getBV(0).bv);
+void TriangleBvh::Refit(const std::vector<Vec3>& v) {
+  for (std::size_t i = nodes_.size(); i-- > 0;) {
+    Node& n = nodes_[i];
+    if (n.tri >= 0) {
+      const mesh::Tri& t = tris_[static_cast<std::size_t>(n.tri)];
+      n.box.lo = v[t[0]].cwiseMin(v[t[1]]).cwiseMin(v[t[2]]);
+      n.box.hi = v[t[0]].cwiseMax(v[t[1]]).cwiseMax(v[t[2]]);
+    } else {
+      n.box.lo = nodes_[n.left].box.lo.cwiseMin(nodes_[n.right].box.lo);
+      n.box.hi = nodes_[n.left].box.hi.cwiseMax(nodes_[n.right].box.hi);
+    }
+  }
 }
 
 void TriangleBvh::Query(const Box& query, std::vector<std::int32_t>* out) const {
-  if (empty() || query.Empty()) return;
-  const std::size_t first = out->size();
-  std::vector<int> stack{0};  // depth-first, left child first
-  while (!stack.empty()) {
-    const auto& node = impl_->model.getBV(stack.back());
-    stack.pop_back();
-    if (!ToBox(node.bv).Overlaps(query)) continue;
-    if (node.isLeaf()) {
-      out->push_back(node.primitiveId());
-    } else {
-      stack.push_back(node.rightChild());
-      stack.push_back(node.leftChild());
-    }
-  }
-  std::sort(out->begin() + static_cast<std::ptrdiff_t>(first), out->end());
+  if (query.Empty()) return;
+  QueryIf([&](const Box& b) { return b.Overlaps(query); }, out);
 }
 
 void TriangleBvh::QueryPairs(const TriangleBvh& other, double margin,
                              std::vector<std::pair<std::int32_t, std::int32_t>>* out) const {
   if (empty() || other.empty()) return;
   const std::size_t first = out->size();
+  auto size = [](const Box& b) { return (b.hi - b.lo).squaredNorm(); };
   std::vector<std::pair<int, int>> stack{{0, 0}};
   while (!stack.empty()) {
     const auto [i, j] = stack.back();
     stack.pop_back();
-    const auto& a = impl_->model.getBV(i);
-    const auto& b = other.impl_->model.getBV(j);
-    if (!ToBox(a.bv).Inflated(margin).Overlaps(ToBox(b.bv))) continue;
-    if (a.isLeaf() && b.isLeaf()) {
-      out->emplace_back(a.primitiveId(), b.primitiveId());
-    } else if (b.isLeaf() || (!a.isLeaf() && a.bv.size() >= b.bv.size())) {
-      stack.emplace_back(a.rightChild(), j);
-      stack.emplace_back(a.leftChild(), j);
+    const Node& a = nodes_[i];
+    const Node& b = other.nodes_[j];
+    if (!a.box.Inflated(margin).Overlaps(b.box)) continue;
+    const bool la = a.tri >= 0, lb = b.tri >= 0;
+    if (la && lb) {
+      out->emplace_back(a.tri, b.tri);
+    } else if (lb || (!la && size(a.box) >= size(b.box))) {
+      stack.emplace_back(a.right, j);
+      stack.emplace_back(a.left, j);
     } else {
-      stack.emplace_back(i, b.rightChild());
-      stack.emplace_back(i, b.leftChild());
+      stack.emplace_back(i, b.right);
+      stack.emplace_back(i, b.left);
     }
   }
   std::sort(out->begin() + static_cast<std::ptrdiff_t>(first), out->end());

@@ -60,43 +60,136 @@ struct Nearest {
   double Signed() const { return (pair.pa - pair.pb).dot(pseudo) >= 0 ? dist : -dist; }
 };
 
-Nearest NearestOnSurface(const Simplex& q, const std::vector<std::int32_t>& cand,
-                         const std::vector<Vec3>& p, const std::vector<mesh::Tri>& tris) {
+// Squared distance between two boxes (0 if they overlap), mm^2: a lower bound of the distance
+// of any two points in them.
+double BoxDist2(const Box& a, const Box& b) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double g = std::max({a.lo[k] - b.hi[k], b.lo[k] - a.hi[k], 0.0});
+    d2 += g * g;
+  }
+  return d2;
+}
+
+// The nearest triangle among the candidates, as if each were tested in ascending order (the
+// first of exactly equal minima wins), and the pseudo-normal summed over the ties in ascending
+// order. Candidates are visited by increasing box distance and those whose box is clearly
+// farther than the best so far are skipped: they can be neither the minimum nor a tie, so the
+// result is the same as testing them all. `qbox` bounds the query, `bvh` holds the triangles'
+// boxes.
+Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<std::int32_t>& cand,
+                         const TriangleBvh& bvh, const std::vector<Vec3>& p,
+                         const std::vector<mesh::Tri>& tris) {
   Nearest best;
-  thread_local std::vector<double> d2;
-  d2.assign(cand.size(), 0);
-  for (std::size_t i = 0; i < cand.size(); ++i) {
-    const ClosestPair c = Closest(q, LocalTriangle(p, tris[cand[i]]));
-    d2[i] = c.dist2;
-    if (!best.found || c.dist2 < best.pair.dist2) {
+  if (cand.empty()) return best;
+  struct Item {
+    double box_d2;
+    std::int32_t tri;
+    double d2;
+  };
+  thread_local std::vector<Item> items;
+  items.clear();
+  for (std::int32_t t : cand) items.push_back({BoxDist2(qbox, bvh.TriangleBox(t)), t, -1});
+  std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) {
+    return a.box_d2 != b.box_d2 ? a.box_d2 < b.box_d2 : a.tri < b.tri;
+  });
+  for (Item& it : items) {
+    // Beyond the tie tolerance below, with a wide margin for rounding: cannot matter.
+    if (best.found && it.box_d2 > best.pair.dist2 * (1 + 1e-6) + 1e-12) break;
+    const ClosestPair c = Closest(q, LocalTriangle(p, tris[it.tri]));
+    it.d2 = c.dist2;
+    if (!best.found || c.dist2 < best.pair.dist2 ||
+        (c.dist2 == best.pair.dist2 && it.tri < best.tri)) {
       best.found = true;
-      best.tri = cand[i];
+      best.tri = it.tri;
       best.pair = c;
     }
   }
-  if (!best.found) return best;
   best.dist = std::sqrt(best.pair.dist2);
-  Vec3 sum = Vec3::Zero();
   const double tie = best.pair.dist2 * (1 + 1e-9) + 1e-18;
-  for (std::size_t i = 0; i < cand.size(); ++i) {
-    if (d2[i] <= tie) sum += FaceNormal(p, tris[cand[i]]);
+  thread_local std::vector<std::int32_t> ties;
+  ties.clear();
+  for (const Item& it : items) {
+    if (it.d2 >= 0 && it.d2 <= tie) ties.push_back(it.tri);
   }
+  std::sort(ties.begin(), ties.end());
+  Vec3 sum = Vec3::Zero();
+  for (std::int32_t t : ties) sum += FaceNormal(p, tris[t]);
   best.pseudo = SafeNormalized(sum, FaceNormal(p, tris[best.tri]));
   return best;
+}
+
+// Culling tests are conservative by this much (mm), so rounding never drops a true candidate.
+constexpr double kCullSlack = 1e-6;
+
+// True if box a grown by m overlaps box b.
+bool NearBoxes(const Box& a, double m, const Box& b) {
+  return (a.lo.array() - m <= b.hi.array()).all() && (b.lo.array() <= a.hi.array() + m).all();
+}
+
+// Conservative: may some point of box b lie within `reach` of the simplex `core` (whose box is
+// core_box)? Box test, then the ball around b's centre through its corners against the core.
+bool BoxNearCore(const Box& core_box, const Simplex& core, double reach, const Box& b) {
+  if (!NearBoxes(core_box, reach + kCullSlack, b)) return false;
+  const Vec3 c = 0.5 * (b.lo + b.hi);
+  const double lim = reach + 0.5 * (b.hi - b.lo).norm() + kCullSlack;
+  return Closest(PointSimplex(c), core).dist2 <= lim * lim;
+}
+
+// Conservative: false only when a triangle's plane separates the other simplex from it by more
+// than `reach` (then no point pair is within reach). Cheap next to an exact triangle test.
+bool PlanesAllowReach(const Simplex& a, const Simplex& b, double reach) {
+  auto separated = [reach](const Simplex& t, const Simplex& o) {
+    if (t.n != 3) return false;
+    const Vec3 n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]);
+    const double len = n.norm();
+    if (!(len > 0)) return false;
+    const double lim = (reach + kCullSlack) * len;
+    double lo = n.dot(o.v[0] - t.v[0]), hi = lo;
+    for (int i = 1; i < o.n; ++i) {
+      const double d = n.dot(o.v[i] - t.v[0]);
+      lo = std::min(lo, d);
+      hi = std::max(hi, d);
+    }
+    return lo > lim || hi < -lim;
+  };
+  return !separated(a, b) && !separated(b, a);
 }
 
 // The tool primitive swept from last step's pose (sub[0]) to this step's (sub.back()).
 struct Sweep {
   const ToolPrimitive* prim = nullptr;
   std::vector<Simplex> sub;
-  Box box;  // of all substeps, not inflated
+  std::vector<Box> sub_box;  // box of each substep core
+  Box box;                   // of all substeps, not inflated
+
+  /// Conservative: may some point of box b come within `reach` of the core at some substep?
+  bool Near(double reach, const Box& b) const {
+    if (!NearBoxes(box, reach + kCullSlack, b)) return false;
+    for (std::size_t s = 0; s < sub.size(); ++s) {
+      if (BoxNearCore(sub_box[s], sub[s], reach, b)) return true;
+    }
+    return false;
+  }
 };
 
-// First substep at which the target comes within `reach` of the swept core.
-bool FirstTouch(const Sweep& sw, double reach, const Simplex& target, ClosestPair* at) {
+// First substep at which the target (whose box is target_box) comes within `reach` of the swept
+// core. Substeps whose core box is farther than reach from target_box cannot touch: skipped.
+// `now`, if given, is Closest(sw.sub.back(), target), already known to the caller.
+bool FirstTouch(const Sweep& sw, double reach, const Simplex& target, const Box& target_box,
+                ClosestPair* at, const ClosestPair* now = nullptr) {
   const double reach2 = reach * reach;
-  for (const Simplex& core : sw.sub) {
-    const ClosestPair c = Closest(core, target);
+  for (std::size_t s = 0; s < sw.sub.size(); ++s) {
+    if (now != nullptr && s + 1 == sw.sub.size()) {
+      if (now->dist2 < reach2) {
+        *at = *now;
+        return true;
+      }
+      return false;
+    }
+    if (!NearBoxes(sw.sub_box[s], reach + kCullSlack, target_box)) continue;
+    if (!PlanesAllowReach(sw.sub[s], target, reach)) continue;
+    const ClosestPair c = Closest(sw.sub[s], target);
     if (c.dist2 < reach2) {
       *at = c;
       return true;
@@ -160,7 +253,9 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
   thread_local std::vector<std::int32_t> tris, verts;
   tris.clear();
   verts.clear();
-  e.bvh.Query(query, &tris);
+  // Triangles that may come within reach of the core at some substep (every vertex within reach
+  // is a corner of one of them).
+  e.bvh.QueryIf([&](const Box& b) { return sw.Near(reach, b); }, &tris);
   for (std::int32_t t : tris) {
     for (std::int32_t v : e.surface.local_tris[t]) verts.push_back(v);
   }
@@ -187,7 +282,7 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     if ((p.array() < query.lo.array()).any() || (p.array() > query.hi.array()).any()) continue;
     if (B->SoftFixed(body, node)) continue;
     ClosestPair touch;
-    if (!FirstTouch(sw, reach, PointSimplex(p), &touch)) continue;
+    if (!FirstTouch(sw, reach, PointSimplex(p), Box{p, p}, &touch)) continue;
     const ClosestPair cur = Closest(now, PointSimplex(p));
     PointContact c = make(touch, cur, -VertexNormal(e.surface, e.positions, v));
     c.nodes = {node, -1, -1, -1};
@@ -204,12 +299,13 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     const mesh::Tri& g = e.surface.tris[t];
     if (B->SoftFixed(body, g[0]) && B->SoftFixed(body, g[1]) && B->SoftFixed(body, g[2])) continue;
     const Simplex tri = LocalTriangle(e.positions, e.surface.local_tris[t]);
-    ClosestPair touch;
-    if (!FirstTouch(sw, reach, tri, &touch)) continue;
+    // The current closest point first: at a vertex there is nothing to add.
     const ClosestPair cur = Closest(now, tri);
     const auto& w = cur.wb;
     const int zeros = (w[0] <= 0) + (w[1] <= 0) + (w[2] <= 0);
     if (zeros >= 2) continue;  // at a vertex: the vertex contact covers it
+    ClosestPair touch;
+    if (!FirstTouch(sw, reach, tri, e.bvh.TriangleBox(t), &touch, &cur)) continue;
     if (zeros == 1) {
       const int k = w[0] <= 0 ? 0 : (w[1] <= 0 ? 1 : 2);
       const std::pair<std::int32_t, std::int32_t> edge{std::min(g[(k + 1) % 3], g[(k + 2) % 3]),
@@ -233,15 +329,31 @@ void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
   const double rt = 0.5 * tm.diameter_mm;
   const double r = sw.prim->radius_mm;
   const double reach = r + rt + P.alarm_distance_mm;
-  const Box query = sw.box.Inflated(reach);
-  std::int32_t last_single = -1;  // a node already given a contact by the previous segment
-  for (const mesh::Edge& edge : tm.initial.edges) {
-    const std::int32_t a = edge[0], b = edge[1];
+  const std::size_t ne = tm.initial.edges.size();
+  // Segment boxes, and boxes of runs of kRun consecutive segments to skip a far thread fast.
+  constexpr std::size_t kRun = 8;
+  thread_local std::vector<Box> seg_box, run_box;
+  seg_box.assign(ne, Box{});
+  run_box.assign((ne + kRun - 1) / kRun, Box{});
+  for (std::size_t i = 0; i < ne; ++i) {
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
     if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
+    seg_box[i].Add(x.col(a));
+    seg_box[i].Add(x.col(b));
+    run_box[i / kRun].Add(x.col(a));
+    run_box[i / kRun].Add(x.col(b));
+  }
+  std::int32_t last_single = -1;  // a node already given a contact by the previous segment
+  for (std::size_t i = 0; i < ne; ++i) {
+    if (i % kRun == 0 && (run_box[i / kRun].Empty() || !sw.Near(reach, run_box[i / kRun]))) {
+      i += kRun - 1;
+      continue;
+    }
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
+    if (seg_box[i].Empty() || !sw.Near(reach, seg_box[i])) continue;
     const Simplex seg = SegmentSimplex(x.col(a), x.col(b));
-    if (!SimplexBox(seg).Overlaps(query)) continue;
     ClosestPair touch;
-    if (!FirstTouch(sw, reach, seg, &touch)) continue;
+    if (!FirstTouch(sw, reach, seg, seg_box[i], &touch)) continue;
     const ClosestPair cur = Closest(sw.sub.back(), seg);
     PointContact c = ThreadPoint(thread, a, b, cur.wb[1]);
     if (c.nodes[1] < 0) {
@@ -267,12 +379,15 @@ void ToolBone(Builder* B, int slot, const Sweep& sw, CollisionWorld::BoneEntry& 
               CollisionOutput* out, double* deepest, Vec3* deepest_point) {
   const double r = sw.prim->radius_mm;
   const Simplex& now = sw.sub.back();
-  const Box query = SimplexBox(now).Inflated(r + B->params.contact_distance_mm);
-  if (e.bvh.empty() || !query.Overlaps(e.bvh.Bounds())) return;
+  const double reach = r + B->params.contact_distance_mm;
+  const Box now_box = SimplexBox(now);
+  if (e.bvh.empty() || !NearBoxes(now_box, reach, e.bvh.Bounds())) return;
   thread_local std::vector<std::int32_t> tris;
   tris.clear();
-  e.bvh.Query(query, &tris);
-  const Nearest n = NearestOnSurface(now, tris, e.positions, e.indexed.local_tris);
+  // Only triangles that may be within reach of the core: the nearest one when there is a
+  // penetration (and all its equally near neighbours) are among them.
+  e.bvh.QueryIf([&](const Box& b) { return BoxNearCore(now_box, now, reach, b); }, &tris);
+  const Nearest n = NearestOnSurface(now, now_box, tris, e.bvh, e.positions, e.indexed.local_tris);
   if (!n.found) return;
   const double depth = r - n.Signed();
   if (depth <= 0) return;
@@ -316,8 +431,12 @@ void ThreadSurfaceContact(Builder* B, int thread, PointContact c, const Nearest&
   B->Add(t, Kind::kThread);
 }
 
+// `query(i, box, out)` lists the triangles whose box overlaps `box` (ascending) for query slot i
+// (nodes 0..n-1, segments n..): a tree query, or a NearBoneCache lookup for a bone.
+template <class Query>
 void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, const Surface& s,
-                   const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness) {
+                   const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness,
+                   const Query& query) {
   const CollisionParams& P = B->params;
   const ThreadModel& tm = B->model.threads[thread];
   const Points& x = B->state.threads[thread].x;
@@ -344,12 +463,12 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
     if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
     const Simplex sg = SegmentSimplex(x.col(a), x.col(b));
-    const Box q = SimplexBox(sg).Inflated(reach);
+    const Box sbox = SimplexBox(sg);
+    const Box q = sbox.Inflated(reach);
     if (!q.Overlaps(bounds)) continue;
-    tris.clear();
-    bvh.Query(q, &tris);
+    query(static_cast<std::size_t>(nn) + i, q, &tris);
     if (tris.empty()) continue;
-    seg[i] = NearestOnSurface(sg, tris, pos, s.local_tris);
+    seg[i] = NearestOnSurface(sg, sbox, tris, bvh, pos, s.local_tris);
     if (!seg[i].found) continue;
     near_node[a] = near_node[b] = 1;
     if (seg[i].pair.dist2 == 0) pierced[i] = 1;
@@ -371,9 +490,9 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
       continue;
     }
     const Simplex p = PointSimplex(x.col(v));
-    tris.clear();
-    bvh.Query(SimplexBox(p).Inflated(reach), &tris);
-    const Nearest n = NearestOnSurface(p, tris, pos, s.local_tris);
+    const Box pbox = SimplexBox(p);
+    query(static_cast<std::size_t>(v), pbox.Inflated(reach), &tris);
+    const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris);
     if (!n.found || !in_contact(n)) continue;
     ThreadSurfaceContact(B, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
                          obstacle_index, s, rt, stiffness);
@@ -404,32 +523,53 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
 
 // ---- soft tissue against bone -----------------------------------------------------------------
 
+// Bone triangles whose box overlaps `query`, ascending, through entry i of *cache: its list was
+// made for a wider box and is refreshed when `query` leaves it or the bone changed.
+constexpr double kNearBoneSlack = 0.5;  // mm; soft tissue and threads move far less per step
+
+void NearBoneTriangles(const CollisionWorld::BoneEntry& g, NearBoneCache* cache, std::size_t i,
+                       const Box& query, std::vector<std::int32_t>* out) {
+  out->clear();
+  const Box& w = cache->wide[i];
+  if (!cache->valid[i] || (query.lo.array() < w.lo.array()).any() ||
+      (query.hi.array() > w.hi.array()).any()) {
+    std::vector<std::int32_t>& list = cache->tris[i];
+    list.clear();
+    cache->wide[i] = query.Inflated(kNearBoneSlack);
+    g.bvh.Query(cache->wide[i], &list);
+    cache->valid[i] = 1;
+  }
+  for (std::int32_t t : cache->tris[i]) {
+    if (g.bvh.TriangleBox(t).Overlaps(query)) out->push_back(t);
+  }
+}
+
+void ResetNearBone(std::int64_t version, std::size_t slots, NearBoneCache* cache) {
+  if (cache->bone_version == version && cache->wide.size() == slots) return;
+  cache->bone_version = version;
+  cache->wide.assign(slots, Box{});
+  cache->valid.assign(slots, 0);
+  cache->tris.assign(slots, {});
+}
+
 void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
                 CollisionWorld::BoneEntry& g) {
   const CollisionParams& P = B->params;
   if (s.bvh.empty() || g.bvh.empty()) return;
   const double margin = std::max(P.alarm_distance_mm, P.max_depth_mm);
-  if (!s.bvh.Bounds().Inflated(margin).Overlaps(g.bvh.Bounds())) return;
-  thread_local std::vector<std::pair<std::int32_t, std::int32_t>> pairs, vt;
+  if (!s.bvh.Bounds().Inflated(margin + kNearBoneSlack).Overlaps(g.bvh.Bounds())) return;
+  NearBoneCache& cache = s.near_bone[bone];
+  ResetNearBone(g.version, s.positions.size(), &cache);
   thread_local std::vector<std::int32_t> cand;
-  pairs.clear();
-  vt.clear();
-  s.bvh.QueryPairs(g.bvh, margin, &pairs);
-  for (const auto& [st, bt] : pairs) {
-    for (std::int32_t v : s.surface.local_tris[st]) vt.emplace_back(v, bt);
-  }
-  std::sort(vt.begin(), vt.end());
-  vt.erase(std::unique(vt.begin(), vt.end()), vt.end());
-  for (std::size_t i = 0; i < vt.size();) {
-    std::size_t j = i;
-    cand.clear();
-    while (j < vt.size() && vt[j].first == vt[i].first) cand.push_back(vt[j++].second);
-    const std::int32_t v = vt[i].first;
-    i = j;
+  for (std::size_t vi = 0; vi < s.positions.size(); ++vi) {
+    const std::int32_t v = static_cast<std::int32_t>(vi);
     const std::int32_t node = s.surface.vertices[v];
     if (B->SoftFixed(body, node)) continue;
-    const Nearest n =
-        NearestOnSurface(PointSimplex(s.positions[v]), cand, g.positions, g.indexed.local_tris);
+    const Vec3& p = s.positions[v];
+    NearBoneTriangles(g, &cache, vi, Box{p.array() - margin, p.array() + margin}, &cand);
+    if (cand.empty()) continue;
+    const Nearest n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, g.bvh, g.positions,
+                                       g.indexed.local_tris);
     if (!n.found) continue;
     const double sd = n.Signed();
     if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
@@ -474,8 +614,12 @@ std::vector<Sweep> MakeSweeps(const Model& model, const ToolState& prev, const T
           core.v[i] = before[j].core.v[i] + f * ((*prims)[j].core.v[i] - before[j].core.v[i]);
         }
       }
-      for (int i = 0; i < core.n; ++i) sw.box.Add(core.v[i]);
+      Box cb;
+      for (int i = 0; i < core.n; ++i) cb.Add(core.v[i]);
+      sw.box.Add(cb.lo);
+      sw.box.Add(cb.hi);
       sw.sub.push_back(core);
+      sw.sub_box.push_back(cb);
     }
     sweeps.push_back(std::move(sw));
   }
@@ -497,6 +641,7 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
       FillPositions(sb.x, e.surface.vertices, &e.positions);
       e.bvh.Build(e.positions, e.surface.local_tris);
       e.built = true;
+      e.near_bone.clear();
       ++world->rebuilds;
     } else {
       FillPositions(sb.x, e.surface.vertices, &e.positions);
@@ -515,8 +660,12 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
     FillPositions(m.nodes, e.indexed.vertices, &e.positions);
     e.bvh.Build(e.positions, e.indexed.local_tris);
     e.built = true;
+    ++e.version;
     ++world->rebuilds;
   }
+  for (CollisionWorld::SoftEntry& e : world->soft) e.near_bone.resize(world->bones.size());
+  world->threads.resize(state.threads.size());
+  for (CollisionWorld::ThreadEntry& e : world->threads) e.near_bone.resize(world->bones.size());
 }
 
 void Detect(const Model& model, const State& state,
@@ -553,12 +702,23 @@ void Detect(const Model& model, const State& state,
     for (std::size_t b = 0; b < world->soft.size(); ++b) {
       const auto& e = world->soft[b];
       ThreadSurface(&B, static_cast<int>(t), Kind::kSoftBody, static_cast<int>(b), e.surface,
-                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm);
+                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm,
+                    [&](std::size_t, const Box& q, std::vector<std::int32_t>* out) {
+                      out->clear();
+                      e.bvh.Query(q, out);
+                    });
     }
     for (std::size_t g = 0; g < world->bones.size(); ++g) {
       const auto& e = world->bones[g];
+      NearBoneCache& cache = world->threads[t].near_bone[g];
+      const std::size_t slots = static_cast<std::size_t>(state.threads[t].x.cols()) +
+                                model.threads[t].initial.edges.size();
+      ResetNearBone(e.version, slots, &cache);
       ThreadSurface(&B, static_cast<int>(t), Kind::kBone, static_cast<int>(g), e.indexed,
-                    e.positions, e.bvh, params.bone_stiffness_n_per_mm);
+                    e.positions, e.bvh, params.bone_stiffness_n_per_mm,
+                    [&](std::size_t i, const Box& q, std::vector<std::int32_t>* out) {
+                      NearBoneTriangles(e, &cache, i, q, out);
+                    });
     }
   }
   for (std::size_t b = 0; b < world->soft.size(); ++b) {

@@ -141,36 +141,44 @@ ClosestPair SegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const
   return Finish(r, SegmentSimplex(p0, p1), SegmentSimplex(q0, q1));
 }
 
+namespace {
+
+// True if segment (p0, p1) crosses the plane of non-degenerate triangle (a, b, c) at a point
+// inside it; *r then holds that common point (dist2 = 0).
+bool Pierces(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c,
+             ClosestPair* r) {
+  const Vec3 e0 = b - a, e1 = c - a;
+  const Vec3 n = e0.cross(e1);
+  const double scale2 = std::max({e0.squaredNorm(), e1.squaredNorm(), (c - b).squaredNorm()});
+  if (n.squaredNorm() <= kTinyLength2 * std::max(scale2 * scale2, 1.0)) return false;
+  const double s0 = n.dot(p0 - a), s1 = n.dot(p1 - a);
+  if (!((s0 <= 0 && s1 >= 0) || (s0 >= 0 && s1 <= 0)) || s0 == s1) return false;
+  const double t = s0 / (s0 - s1);
+  const Vec3 x = p0 + t * (p1 - p0);
+  const Vec3 v2 = x - a;
+  const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1);
+  const double d20 = v2.dot(e0), d21 = v2.dot(e1);
+  const double den = d00 * d11 - d01 * d01;
+  const double v = (d11 * d20 - d01 * d21) / den;
+  const double w = (d00 * d21 - d01 * d20) / den;
+  if (!(v >= 0 && w >= 0 && v + w <= 1)) return false;
+  r->wa = {1 - t, t, 0};
+  r->wb = {1 - v - w, v, w};
+  r->pa = SegmentSimplex(p0, p1).At(r->wa);
+  r->pb = TriangleSimplex(a, b, c).At(r->wb);
+  r->dist2 = 0;
+  return true;
+}
+
+}  // namespace
+
 ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
                             const Vec3& c) {
   const Simplex seg = SegmentSimplex(p0, p1);
   const Simplex tri = TriangleSimplex(a, b, c);
-  const Vec3 e0 = b - a, e1 = c - a;
-  const Vec3 n = e0.cross(e1);
-  const double scale2 = std::max({e0.squaredNorm(), e1.squaredNorm(), (c - b).squaredNorm()});
-  const bool degenerate = n.squaredNorm() <= kTinyLength2 * std::max(scale2 * scale2, 1.0);
-  if (!degenerate) {
-    // Piercing: the segment crosses the plane at a point inside the triangle.
-    const double s0 = n.dot(p0 - a), s1 = n.dot(p1 - a);
-    if (((s0 <= 0 && s1 >= 0) || (s0 >= 0 && s1 <= 0)) && s0 != s1) {
-      const double t = s0 / (s0 - s1);
-      const Vec3 x = p0 + t * (p1 - p0);
-      const Vec3 v2 = x - a;
-      const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1);
-      const double d20 = v2.dot(e0), d21 = v2.dot(e1);
-      const double den = d00 * d11 - d01 * d01;
-      const double v = (d11 * d20 - d01 * d21) / den;
-      const double w = (d00 * d21 - d01 * d20) / den;
-      if (v >= 0 && w >= 0 && v + w <= 1) {
-        ClosestPair r;
-        r.wa = {1 - t, t, 0};
-        r.wb = {1 - v - w, v, w};
-        r.pa = seg.At(r.wa);
-        r.pb = tri.At(r.wb);
-        r.dist2 = 0;
-        return r;
-      }
-    }
+  {
+    ClosestPair r;
+    if (Pierces(p0, p1, a, b, c, &r)) return r;
   }
   // Otherwise the minimum is at an endpoint against the face or at the segment against an edge.
   ClosestPair best = PointTriangle(p0, a, b, c);
@@ -195,32 +203,62 @@ ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const
 }
 
 ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
-  // If they do not intersect, the minimum is attained on an edge of one of them; if they do, an
-  // edge of one meets the other, and that query returns 0.
   const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  // Intersecting (not coplanar): an edge of one crosses the other.
   ClosestPair best;
-  best.dist2 = -1;
   for (const auto& e : edges) {
-    const ClosestPair q = SegmentTriangle(a.v[e[0]], a.v[e[1]], b.v[0], b.v[1], b.v[2]);
-    if (best.dist2 < 0 || q.dist2 < best.dist2) {
-      best = q;
+    if (Pierces(a.v[e[0]], a.v[e[1]], b.v[0], b.v[1], b.v[2], &best)) {
+      const std::array<double, 3> w = best.wa;
       best.wa = {0, 0, 0};
-      best.wa[e[0]] = q.wa[0];
-      best.wa[e[1]] += q.wa[1];
-      if (best.dist2 == 0) return best;
+      best.wa[e[0]] = w[0];
+      best.wa[e[1]] += w[1];
+      return best;
     }
   }
   for (const auto& e : edges) {
-    const ClosestPair q = SegmentTriangle(b.v[e[0]], b.v[e[1]], a.v[0], a.v[1], a.v[2]);
-    if (q.dist2 < best.dist2) {
-      best = Swapped(q);
+    if (Pierces(b.v[e[0]], b.v[e[1]], a.v[0], a.v[1], a.v[2], &best)) {
+      best = Swapped(best);
+      const std::array<double, 3> w = best.wb;
       best.wb = {0, 0, 0};
-      best.wb[e[0]] = q.wa[0];
-      best.wb[e[1]] += q.wa[1];
-      if (best.dist2 == 0) return best;
+      best.wb[e[0]] = w[0];
+      best.wb[e[1]] += w[1];
+      return best;
     }
   }
-  return best;
+  // Otherwise the minimum is a vertex against the other face or an edge against an edge
+  // (coplanar overlaps included: a crossing edge pair or a contained vertex gives 0). Fixed
+  // evaluation order, strict improvement: ties keep the first candidate.
+  best.dist2 = -1;
+  auto take = [&](const ClosestPair& q) {
+    if (best.dist2 < 0 || q.dist2 < best.dist2) best = q;
+  };
+  for (int i = 0; i < 3; ++i) {
+    ClosestPair q = PointTriangle(a.v[i], b.v[0], b.v[1], b.v[2]);
+    q.wa = {0, 0, 0};
+    q.wa[i] = 1;
+    take(q);
+  }
+  for (int i = 0; i < 3; ++i) {
+    ClosestPair q = Swapped(PointTriangle(b.v[i], a.v[0], a.v[1], a.v[2]));
+    q.wb = {0, 0, 0};
+    q.wb[i] = 1;
+    take(q);
+  }
+  for (const auto& ea : edges) {
+    for (const auto& eb : edges) {
+      const ClosestPair s = SegmentSegment(a.v[ea[0]], a.v[ea[1]], b.v[eb[0]], b.v[eb[1]]);
+      if (!(best.dist2 < 0 || s.dist2 < best.dist2)) continue;
+      ClosestPair q = s;
+      q.wa = {0, 0, 0};
+      q.wa[ea[0]] = s.wa[0];
+      q.wa[ea[1]] += s.wa[1];
+      q.wb = {0, 0, 0};
+      q.wb[eb[0]] = s.wb[0];
+      q.wb[eb[1]] += s.wb[1];
+      best = q;
+    }
+  }
+  return Finish(best, a, b);
 }
 
 ClosestPair Closest(const Simplex& a, const Simplex& b) {

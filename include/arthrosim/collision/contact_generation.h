@@ -40,7 +40,19 @@ struct CollisionParams {
   double tool_bone_stiffness_n_per_mm = 5.0;      ///< reaction on the (kinematic) tool, per part
 };
 
-/// Derived collision data (surfaces, FCL trees): Workspace, rebuilt from State at will.
+/// Bone triangles near each query slot (soft surface vertices, thread nodes and segments): the
+/// list of every triangle whose box overlaps a `wide` box (the query box when it was made, grown
+/// by a slack). While a slot's query box stays inside its wide box, filtering the list with the
+/// query box gives exactly what a tree query would (bones are static between reshapes): a cache
+/// that never changes a result.
+struct NearBoneCache {
+  std::int64_t bone_version = -1;  ///< BoneEntry::version the lists were made for
+  std::vector<Box> wide;           ///< box each list was made for, mm
+  std::vector<std::uint8_t> valid;
+  std::vector<std::vector<std::int32_t>> tris;  ///< ascending bone triangle indices
+};
+
+/// Derived collision data (surfaces, trees): Workspace, rebuilt from State at will.
 struct CollisionWorld {
   struct SoftEntry {
     std::size_t tet_count = 0;
@@ -49,6 +61,7 @@ struct CollisionWorld {
     std::vector<Vec3> positions;  ///< local vertex positions this step
     TriangleBvh bvh;
     bool built = false;
+    std::vector<NearBoneCache> near_bone;  ///< per bone, per local surface vertex
   };
   struct BoneEntry {
     mesh::TriMesh surface;  ///< copy the tree was built for
@@ -56,9 +69,14 @@ struct CollisionWorld {
     std::vector<Vec3> positions;
     TriangleBvh bvh;
     bool built = false;
+    std::int64_t version = 0;  ///< increases at every (re)build
+  };
+  struct ThreadEntry {
+    std::vector<NearBoneCache> near_bone;  ///< per bone, per thread node then segment
   };
   std::vector<SoftEntry> soft;
   std::vector<BoneEntry> bones;
+  std::vector<ThreadEntry> threads;
   std::int64_t rebuilds = 0;  ///< tree (re)builds so far (diagnostics)
 };
 
