@@ -14,6 +14,8 @@ int main(int argc, char** argv) {
   AddRunCommand(&app, &exit_code);
   AddValidateCommand(&app, &exit_code);
   AddInfoCommand(&app, &exit_code);
+  AddServeCommand(&app, &exit_code);
+  AddRenderCommand(&app, &exit_code);
   AddReservedCommands(&app, &exit_code);
   try {
     app.parse(argc, argv);

@@ -57,23 +57,6 @@ Quat AimAlong(const Vec3& axis, double roll_rad) {
   return q;
 }
 
-Quat LookAt(const Vec3& eye, const Vec3& target) {
-  Vec3 f = target - eye;
-  const double n = f.norm();
-  if (!(n > 0.0)) return Quat::Identity();
-  f /= n;
-  const Vec3 z = -f;
-  Vec3 up = Vec3::UnitZ();
-  if (std::abs(f.dot(up)) > 1.0 - 1e-9) up = Vec3::UnitY();
-  const Vec3 x = up.cross(z).normalized();
-  const Vec3 y = z.cross(x);
-  Mat3 r;
-  r.col(0) = x;
-  r.col(1) = y;
-  r.col(2) = z;
-  Quat q(r);
-  q.normalize();
-  return q;
-}
+Quat LookAt(const Vec3& eye, const Vec3& target) { return LookAtOrientation(eye, target); }
 
 }  // namespace arthrosim::input

@@ -435,19 +435,6 @@ void ReadInstruments(const Section& root, Model* m) {
   }
 }
 
-// Scope tip pose from a position and a look-at point; image up as close to world +z as possible.
-Pose LookAtPose(const Vec3& eye, const Vec3& target) {
-  const Vec3 forward = (target - eye).normalized();
-  Vec3 up = Vec3::UnitZ() - forward * forward.z();
-  if (up.norm() < 1e-9) up = Vec3::UnitY() - forward * forward.y();
-  up.normalize();
-  Mat3 r;
-  r.col(0) = up.cross(forward);
-  r.col(1) = up;
-  r.col(2) = forward;
-  return Pose{eye, Quat(r).normalized()};
-}
-
 void ReadCamera(const Section& root, Model* m) {
   CameraModel& c = m->camera;
   if (!root.Has("camera")) {
@@ -468,7 +455,7 @@ void ReadCamera(const Section& root, Model* m) {
   const Vec3 eye = s.Vector("position", Vec3(0, 0, 0));
   const Vec3 target = s.Vector("look_at", eye + Vec3::UnitX());
   if ((target - eye).norm() <= 0) Fail(root.ctx(), s.Get("look_at"), s.Field("look_at"), "must differ from position");
-  c.initial_pose = LookAtPose(eye, target);
+  c.initial_pose = Pose{eye, LookAtOrientation(eye, target)};
 }
 
 }  // namespace

@@ -154,12 +154,12 @@ slot0:
   InputFrame f = At(s, 1.0);
   const Vec3 sc = m.landmarks[m.FindLandmark("subacromial_center")].position_mm;
   EXPECT_NEAR((f.camera.pose.position_mm - (sc + Vec3(-20, 0, 0))).norm(), 0, 1e-12);
-  EXPECT_NEAR(((f.camera.pose.orientation * Vec3(0, 0, -1)) - Vec3(1, 0, 0)).norm(), 0, 1e-12);
+  EXPECT_NEAR(((f.camera.pose.orientation * Vec3(0, 0, 1)) - Vec3(1, 0, 0)).norm(), 0, 1e-12);
   EXPECT_NEAR(f.camera.lens_roll_rad, 30 * units::kDegToRad, 1e-15);
   EXPECT_NEAR(f.camera.head_roll_rad, -10 * units::kDegToRad, 1e-15);
   for (double t : {1.6, 2.2, 2.9}) {
     f = At(s, t);
-    const Vec3 view = f.camera.pose.orientation * Vec3(0, 0, -1);
+    const Vec3 view = f.camera.pose.orientation * Vec3(0, 0, 1);
     const Vec3 to_tip = (f.tools[0].pose.position_mm - f.camera.pose.position_mm).normalized();
     EXPECT_NEAR((view - to_tip).norm(), 0, 1e-9) << t;
   }

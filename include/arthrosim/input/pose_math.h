@@ -1,7 +1,7 @@
 #pragma once
 // Small pose helpers shared by the input sources: easing curves, shortest-arc slerp, aiming.
-// Conventions: a tool's shaft runs along -z from the tip, so its +z axis points from the portal
-// to the tip; the arthroscope looks along its -z axis.
+// Conventions (core/model.h): a tool's shaft runs along -z from the tip, so its +z axis points
+// from the portal to the tip; the arthroscope's shaft axis is its +z as well.
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -25,7 +25,7 @@ Quat Slerp(const Quat& a, const Quat& b, double u);
 /// minimal rotation from world +z, then rotated by roll_rad about that axis.
 Quat AimAlong(const Vec3& axis, double roll_rad = 0.0);
 
-/// Camera orientation whose -z axis looks from `eye` to `target` (mm) and whose +y is as close as
+/// Camera orientation whose +z axis looks from `eye` to `target` (mm) and whose +y is as close as
 /// possible to world +z (world +y if the view is vertical). Returns identity if eye == target.
 Quat LookAt(const Vec3& eye, const Vec3& target);
 

@@ -1,0 +1,133 @@
+// End-to-end tests of the arthrosim binary: exit codes, error messages, determinism of the HDF5
+// output across thread counts, and a SIGKILLed run leaving a readable file.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kBinary = std::string(ARTHROSIM_BINARY_DIR) + "/src/cli/arthrosim";
+const std::string kSource = ARTHROSIM_SOURCE_DIR;
+const std::string kSmall = kSource + "/tests/testdata/scenes/small.yaml";
+
+std::string Python() { return fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3"; }
+
+struct Result {
+  int exit_code = -1;
+  std::string output;  // stdout + stderr
+};
+
+Result Exec(const std::string& args) {
+  Result r;
+  FILE* pipe = popen((kBinary + " " + args + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf{};
+  while (std::fgets(buf.data(), buf.size(), pipe)) r.output += buf.data();
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("arthrosim_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string P(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+TEST_F(CliTest, ValidateAcceptsTheShippedScenarios) {
+  for (const char* s : {"scenarios/rotator_cuff_repair.yaml", "scenarios/bench_full.yaml"}) {
+    const Result r = Exec("validate " + kSource + "/" + s);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("ok"), std::string::npos) << r.output;
+  }
+}
+
+TEST_F(CliTest, BadScenarioExitsWithTwoAndNamesFileLineField) {
+  std::ifstream in(kSmall);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("poisson_ratio: 0.3"), 18, "poisson_ratio: 0.7");
+  fs::copy(fs::path(kSmall).parent_path() / "block.vtk", dir_ / "block.vtk");
+  fs::copy(fs::path(kSmall).parent_path() / "bone.obj", dir_ / "bone.obj");
+  std::ofstream(P("bad.yaml")) << text;
+  const Result r = Exec("validate " + P("bad.yaml"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find(P("bad.yaml") + ":8: field 'materials.soft.poisson_ratio'"), std::string::npos)
+      << r.output;
+  // run refuses it the same way and writes no output file
+  const Result run = Exec("run " + P("bad.yaml") + " --quiet --out " + P("x.h5"));
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_FALSE(fs::exists(P("x.h5")));
+}
+
+TEST_F(CliTest, UsageErrorsExitWithTwo) {
+  EXPECT_EQ(Exec("").exit_code, 2);
+  EXPECT_EQ(Exec("run").exit_code, 2);
+  EXPECT_EQ(Exec("run " + kSmall + " --steps 3 --duration 1").exit_code, 2);
+  EXPECT_EQ(Exec("run " + kSmall + " --trajectory nowhere.csv --quiet --out " + P("y.h5")).exit_code, 2);
+  EXPECT_EQ(Exec("info " + P("missing.yaml")).exit_code, 2);
+}
+
+TEST_F(CliTest, RunIsByteIdenticalForOneAndTwoThreads) {
+  const Result a = Exec("run " + kSmall + " --steps 15 --threads 1 --quiet --out " + P("a.h5"));
+  const Result b = Exec("run " + kSmall + " --steps 15 --threads 2 --quiet --out " + P("b.h5"));
+  ASSERT_EQ(a.exit_code, 0) << a.output;
+  ASSERT_EQ(b.exit_code, 0) << b.output;
+  const std::string cmp = Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") + " " + P("b.h5");
+  EXPECT_EQ(std::system(cmp.c_str()), 0) << cmp;
+  // and a different run does differ, so the comparison can fail
+  const Result c = Exec("run " + kSmall + " --steps 16 --quiet --out " + P("c.h5"));
+  ASSERT_EQ(c.exit_code, 0) << c.output;
+  const std::string cmp2 = Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") + " " +
+                           P("c.h5") + " --quiet";
+  EXPECT_NE(std::system(cmp2.c_str()), 0);
+}
+
+TEST_F(CliTest, InfoSummarisesARun) {
+  ASSERT_EQ(Exec("run " + kSmall + " --steps 5 --quiet --out " + P("r.h5")).exit_code, 0);
+  const Result r = Exec("info " + P("r.h5"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("frames: 6"), std::string::npos) << r.output;
+}
+
+TEST_F(CliTest, KilledRunLeavesAReadableFile) {
+  const std::string out = P("killed.h5");
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    // a long run (flushes every 0.1 simulated s in this scenario)
+    execl(kBinary.c_str(), kBinary.c_str(), "run", kSmall.c_str(), "--steps", "1000000", "--quiet",
+          "--out", out.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // wait until some frames are durable, then kill -9
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  kill(pid, SIGKILL);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const std::string check = Python() + " -c \"import h5py,sys; f=h5py.File('" + out +
+                            "','r',swmr=True); n=f['time'].shape[0]; "
+                            "p=f['bodies/block/positions'][:n]; sys.exit(0 if n>5 and "
+                            "p.shape[0]==n and (f['time'][1:n]>f['time'][:n-1]).all() else 1)\"";
+  EXPECT_EQ(std::system(check.c_str()), 0) << check;
+}
+
+}  // namespace
