@@ -7,7 +7,7 @@
 namespace arthrosim::cli {
 
 void AddReservedCommands(CLI::App* app, int* exit_code) {
-  for (const char* name : {"score", "compare", "bench"}) {
+  for (const char* name : {"score", "compare"}) {
     auto* cmd = app->add_subcommand(name, std::string("(reserved: not implemented yet)"));
     cmd->allow_extras();
     cmd->callback([name, exit_code] {

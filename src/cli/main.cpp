@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   AddInfoCommand(&app, &exit_code);
   AddServeCommand(&app, &exit_code);
   AddRenderCommand(&app, &exit_code);
+  AddBenchCommand(&app, &exit_code);
   AddReservedCommands(&app, &exit_code);
   try {
     app.parse(argc, argv);

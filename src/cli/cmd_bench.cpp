@@ -1,0 +1,152 @@
+// arthrosim bench SCENARIO [--steps N] [--trajectory F] [--beam-mesh F] [--render]
+// Times the step stage by stage on one thread and prints a table plus one name=value line per
+// figure (for scripts). Also runs the cantilever beam of the physics verification (speed at
+// equal accuracy: ms per step and how far the settled tip is from the static solution).
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <numeric>
+#include <vector>
+
+#include "arthrosim/core/parallel.h"
+#include "arthrosim/input/open_source.h"
+#include "arthrosim/io/run_writer.h"
+#include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/physics/fem_bench.h"
+#include "arthrosim/render/bench.h"
+#include "arthrosim/sim/step.h"
+#include "commands.h"
+
+namespace arthrosim::cli {
+namespace {
+
+struct BenchArgs {
+  std::string scenario, trajectory, beam_mesh = "tests/testdata/beam/beam_2.5.msh";
+  int steps = 100;
+  bool render = false;
+};
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double Mean(const std::vector<double>& v) {
+  return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+}
+
+struct Series {
+  std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output, cg_it;
+  double last_residual = 0;
+};
+
+Series TimeScenario(const Model& model, const BenchArgs& a) {
+  input::SourceOptions options;
+  options.dt_s = model.options.dt_s;
+  auto source = input::OpenInputSource(a.trajectory.empty() ? "none" : a.trajectory, model, options);
+  State state = MakeInitialState(model);
+  sim::Workspace ws;
+  sim::BuildWorkspace(model, state, &ws);
+  const std::string out = (std::filesystem::temp_directory_path() / "arthrosim_bench.h5").string();
+  io::RunWriter writer(out, model, state);
+  Series s;
+  InputFrame frame;
+  constexpr int kWarmup = 3;
+  for (int k = 0; k < a.steps + kWarmup; ++k) {
+    source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
+    sim::Step(model, frame, &state, &ws);
+    const auto t0 = std::chrono::steady_clock::now();
+    writer.Append(state);
+    const double output_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (k < kWarmup) continue;
+    const sim::StepTimings& t = ws.timings;
+    s.step.push_back(t.total_ms);
+    s.kinematics.push_back(t.kinematics_ms);
+    s.collision.push_back(t.collision_ms);
+    s.rotations.push_back(t.soft.rotations_ms);
+    s.assembly.push_back(t.soft.assembly_ms);
+    s.solve.push_back(t.soft.solve_ms);
+    s.thread.push_back(t.thread_ms);
+    s.output.push_back(output_ms);
+    s.cg_it.push_back(t.soft.cg_iterations);
+    s.last_residual = t.soft.cg_relative_residual;
+  }
+  writer.Close();
+  std::filesystem::remove(out);
+  std::filesystem::remove(std::filesystem::path(out).replace_extension(".xmf"));
+  return s;
+}
+
+void PrintScenario(const Model& model, const Series& s, int steps) {
+  std::size_t nodes = 0, tets = 0, thread_nodes = 0;
+  for (const auto& b : model.soft_bodies) {
+    nodes += static_cast<std::size_t>(b.rest_mesh.nodes.cols());
+    tets += b.rest_mesh.tets.size();
+  }
+  for (const auto& t : model.threads) thread_nodes += static_cast<std::size_t>(t.initial.nodes.cols());
+  fmt::print("scenario {}: {} soft nodes (before joins), {} tets, {} threads ({} nodes), dt {} s, "
+             "{} timed steps, 1 thread\n",
+             model.name, nodes, tets, model.threads.size(), thread_nodes, model.options.dt_s, steps);
+  fmt::print("  {:12} {:>10} {:>10}\n", "stage", "median ms", "mean ms");
+  const std::pair<const char*, const std::vector<double>*> rows[] = {
+      {"kinematics", &s.kinematics}, {"collision", &s.collision}, {"rotations", &s.rotations},
+      {"assembly", &s.assembly},     {"solve", &s.solve},         {"thread", &s.thread},
+      {"step total", &s.step},       {"output", &s.output}};
+  for (const auto& [name, v] : rows) fmt::print("  {:12} {:10.3f} {:10.3f}\n", name, Median(*v), Mean(*v));
+  fmt::print("step_ms_median={:.3f}\n", Median(s.step));
+  fmt::print("collision_ms_median={:.3f}\n", Median(s.collision));
+  fmt::print("rotations_ms_median={:.3f}\n", Median(s.rotations));
+  fmt::print("assembly_ms_median={:.3f}\n", Median(s.assembly));
+  fmt::print("solve_ms_median={:.3f}\n", Median(s.solve));
+  fmt::print("thread_ms_median={:.3f}\n", Median(s.thread));
+  fmt::print("output_ms_median={:.3f}\n", Median(s.output));
+  fmt::print("cg_iterations_mean={:.2f}\n", Mean(s.cg_it));
+  fmt::print("cg_residual_final={:.3g}\n", s.last_residual);
+}
+
+void PrintBeam(const std::string& mesh_path) {
+  if (!std::filesystem::exists(mesh_path)) {
+    fmt::print("beam: skipped (mesh {} not found; run from the source tree or pass --beam-mesh)\n",
+               mesh_path);
+    return;
+  }
+  physics::BeamBenchOptions o;
+  o.mesh_path = mesh_path;
+  const physics::BeamBenchResult r = physics::RunBeamBenchmark(o);
+  fmt::print("beam {}: {} nodes, {} tets, {} steps of {} s; static tip {:.5f} mm, settled {:.5f} mm; "
+             "CG {:.1f} iterations mean ({} max)\n",
+             mesh_path, r.nodes, r.tets, r.steps, o.dt_s, r.static_tip_mm, r.settled_tip_mm,
+             r.mean_cg_iterations, r.max_cg_iterations);
+  fmt::print("beam_ms_per_step={:.3f}\n", r.ms_per_step);
+  fmt::print("beam_settled_error_pct={:.4f}\n", r.beam_settled_error_pct);
+}
+
+}  // namespace
+
+void AddBenchCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand("bench", "Time the simulation (and rendering) on this machine");
+  auto a = std::make_shared<BenchArgs>();
+  cmd->add_option("scenario", a->scenario, "Scenario YAML file")->required();
+  cmd->add_option("--steps", a->steps, "Timed steps")->check(CLI::Range(1, 100000))->capture_default_str();
+  cmd->add_option("--trajectory", a->trajectory, "Input during the timed steps (default: idle)");
+  cmd->add_option("--beam-mesh", a->beam_mesh, "Cantilever mesh for the beam figures")->capture_default_str();
+  cmd->add_flag("--render", a->render, "Also measure rendering and encoding frame rates");
+  cmd->callback([a, exit_code] {
+    SetThreadCount(1);
+    const Model model = io::LoadScenario(a->scenario);
+    PrintScenario(model, TimeScenario(model, *a), a->steps);
+    PrintBeam(a->beam_mesh);
+    if (a->render) {
+      setenv("LP_NUM_THREADS", "2", 0);
+      fmt::print("{}", render::RenderBenchReport(model, render::MakeBenchmarkState(model), 100));
+    }
+    *exit_code = kExitOk;
+  });
+}
+
+}  // namespace arthrosim::cli
