@@ -1,0 +1,252 @@
+#include "arthrosim/physics/bone_surface.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <vector>
+
+namespace arthrosim::physics {
+
+namespace {
+
+using mesh::Tri;
+
+double TriVolume(const Points& x, const Tri& t) {
+  return x.col(t[0]).dot(x.col(t[1]).cross(x.col(t[2]))) / 6.0;
+}
+
+Vec3 TriNormal(const Points& x, const Tri& t) {
+  return (x.col(t[1]) - x.col(t[0])).cross(x.col(t[2]) - x.col(t[0]));
+}
+
+// A region the tool can reach: a sphere (center, radius) bounding the tool shape.
+struct Region {
+  Vec3 center = Vec3::Zero();
+  double radius = 0;
+};
+
+double PointSegmentDistance(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+bool TriNearRegion(const Points& x, const Tri& t, const Region& r) {
+  Vec3 lo = x.col(t[0]), hi = x.col(t[0]);
+  for (int k = 1; k < 3; ++k) {
+    lo = lo.cwiseMin(x.col(t[k]));
+    hi = hi.cwiseMax(x.col(t[k]));
+  }
+  const Vec3 closest = r.center.cwiseMax(lo).cwiseMin(hi);
+  return (closest - r.center).norm() <= r.radius;
+}
+
+// Splits, longest first, every edge within the region longer than max_edge. Each pass splits an
+// independent set of edges (no triangle touched twice), then the adjacency is rebuilt.
+int SplitLongEdges(mesh::TriMesh* m, const Region& region, double max_edge,
+                   std::vector<std::array<int, 2>>* parents) {
+  int splits = 0;
+  // Each pass at least halves the longest candidate edge or splits an independent set, so the
+  // loop ends; the bound only guards against a non-finite input.
+  for (int pass = 0; pass < 100000; ++pass) {
+    // Directed edge (a, b) -> (triangle, local index of a).
+    std::map<std::array<int, 2>, std::array<int, 2>> directed;
+    std::vector<int> region_tris;
+    for (int t = 0; t < static_cast<int>(m->tris.size()); ++t) {
+      if (!TriNearRegion(m->nodes, m->tris[t], region)) continue;
+      region_tris.push_back(t);
+      for (int k = 0; k < 3; ++k) directed[{m->tris[t][k], m->tris[t][(k + 1) % 3]}] = {t, k};
+    }
+    struct Candidate {
+      double length;
+      int a, b;
+    };
+    std::vector<Candidate> cand;
+    for (const auto& [e, tk] : directed) {
+      if (e[0] > e[1]) continue;  // each undirected edge once
+      if (directed.find({e[1], e[0]}) == directed.end()) continue;
+      const Vec3 pa = m->nodes.col(e[0]), pb = m->nodes.col(e[1]);
+      const double len = (pb - pa).norm();
+      if (len <= max_edge) continue;
+      if (PointSegmentDistance(region.center, pa, pb) > region.radius) continue;
+      cand.push_back({len, e[0], e[1]});
+    }
+    if (cand.empty()) break;
+    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+      if (x.length != y.length) return x.length > y.length;
+      if (x.a != y.a) return x.a < y.a;
+      return x.b < y.b;
+    });
+    std::vector<std::uint8_t> touched(m->tris.size(), 0);
+    for (const Candidate& c : cand) {
+      const std::array<int, 2> t1k = directed.at({c.a, c.b});
+      const std::array<int, 2> t2k = directed.at({c.b, c.a});
+      if (touched[t1k[0]] || touched[t2k[0]]) continue;
+      touched[t1k[0]] = touched[t2k[0]] = 1;
+      const int mid = static_cast<int>(m->nodes.cols());
+      m->nodes.conservativeResize(3, mid + 1);
+      m->nodes.col(mid) = 0.5 * (m->nodes.col(c.a) + m->nodes.col(c.b));
+      parents->push_back({c.a, c.b});
+      // (a, b, c) -> (a, m, c) + (m, b, c); (b, a, d) -> (b, m, d) + (m, a, d).
+      const Tri t1 = m->tris[t1k[0]], t2 = m->tris[t2k[0]];
+      const int opp1 = t1[(t1k[1] + 2) % 3], opp2 = t2[(t2k[1] + 2) % 3];
+      m->tris[t1k[0]] = {c.a, mid, opp1};
+      m->tris.push_back({mid, c.b, opp1});
+      m->tris[t2k[0]] = {c.b, mid, opp2};
+      m->tris.push_back({mid, c.a, opp2});
+      touched.push_back(1);
+      touched.push_back(1);
+      ++splits;
+    }
+  }
+  return splits;
+}
+
+// One tool operation: `target(p, &q)` returns true and the destination q for a vertex inside
+// the tool. Vertices move toward q by at most max_move. `view(p)` is the direction from p to the
+// tool (the projection direction): a move is kept only if every incident triangle still faces
+// the tool the way it did (sign of normal . view), i.e. no triangle folds over as seen along the
+// projection. Comparing with the old normal instead would reject the legitimate >90 degree
+// turns of a surface wrapping onto the burr.
+double Reshape(BoneState* bone, const Region& region, double max_move,
+               const std::function<bool(const Vec3&, Vec3*)>& target,
+               const std::function<Vec3(const Vec3&)>& view, const BoneCarveOptions& opt) {
+  mesh::TriMesh& m = bone->surface;
+  const double v_before = EnclosedVolume(m);
+  std::vector<double> moved_total;
+  for (int round = 0; round < opt.rounds; ++round) {
+    const int n_before = static_cast<int>(m.nodes.cols());
+    std::vector<std::array<int, 2>> parents;
+    SplitLongEdges(&m, region, opt.max_edge_mm, &parents);
+    const int n = static_cast<int>(m.nodes.cols());
+    // A midpoint already sits where its parents were moved: it inherits their used depth, so no
+    // point of the surface moves more than max_move in one call.
+    moved_total.resize(n, 0.0);
+    for (int i = n_before; i < n; ++i) {
+      const std::array<int, 2>& pr = parents[i - n_before];
+      moved_total[i] = std::max(moved_total[pr[0]], moved_total[pr[1]]);
+    }
+    const Points old = m.nodes;
+    std::vector<std::uint8_t> moved(n, 0);
+    bool any = false;
+    for (int i = 0; i < n; ++i) {
+      if ((old.col(i) - region.center).norm() > region.radius) continue;
+      Vec3 q;
+      if (!target(old.col(i), &q)) continue;
+      const Vec3 d = q - old.col(i);
+      const double len = d.norm();
+      const double budget = max_move - moved_total[i];
+      if (len <= 1e-12 || budget <= 1e-12) continue;
+      m.nodes.col(i) = old.col(i) + d * std::min(1.0, budget / len);
+      moved[i] = 1;
+      any = true;
+    }
+    if (!any) break;
+    // Revert vertices whose move flips an incident triangle; repeat until none flips.
+    std::vector<int> tris;
+    for (int t = 0; t < static_cast<int>(m.tris.size()); ++t) {
+      const Tri& tr = m.tris[t];
+      if (moved[tr[0]] || moved[tr[1]] || moved[tr[2]]) tris.push_back(t);
+    }
+    for (int pass = 0; pass < 32; ++pass) {
+      bool reverted = false;
+      for (int t : tris) {
+        const Tri& tr = m.tris[t];
+        const Vec3 c0 = (old.col(tr[0]) + old.col(tr[1]) + old.col(tr[2])) / 3.0;
+        const Vec3 c1 = (m.nodes.col(tr[0]) + m.nodes.col(tr[1]) + m.nodes.col(tr[2])) / 3.0;
+        const double f0 = TriNormal(old, tr).dot(view(c0));
+        const double f1 = TriNormal(m.nodes, tr).dot(view(c1));
+        if ((f0 > 0) == (f1 > 0) && f1 != 0) continue;
+        for (int k = 0; k < 3; ++k) {
+          if (!moved[tr[k]]) continue;
+          m.nodes.col(tr[k]) = old.col(tr[k]);
+          moved[tr[k]] = 0;
+          reverted = true;
+        }
+      }
+      if (!reverted) break;
+    }
+    for (int i = 0; i < n; ++i)
+      if (moved[i]) moved_total[i] += (m.nodes.col(i) - old.col(i)).norm();
+  }
+  const double removed = v_before - EnclosedVolume(m);
+  bone->removed_volume_mm3 += removed;
+  return removed;
+}
+
+}  // namespace
+
+double EnclosedVolume(const mesh::TriMesh& surface) {
+  double v = 0;
+  for (const Tri& t : surface.tris) v += TriVolume(surface.nodes, t);
+  return v;
+}
+
+WatertightReport CheckWatertight(const mesh::TriMesh& surface) {
+  WatertightReport r;
+  const int n = static_cast<int>(surface.nodes.cols());
+  std::vector<std::array<int, 2>> edges;
+  edges.reserve(3 * surface.tris.size());
+  for (const Tri& t : surface.tris) {
+    bool bad = false;
+    for (int k = 0; k < 3; ++k) bad |= t[k] < 0 || t[k] >= n;
+    bad |= t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+    if (bad) {
+      ++r.degenerate_tris;
+      continue;
+    }
+    for (int k = 0; k < 3; ++k) edges.push_back({t[k], t[(k + 1) % 3]});
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    if (i > 0 && edges[i] == edges[i - 1]) {
+      ++r.nonmanifold_edges;
+      continue;
+    }
+    if (!std::binary_search(edges.begin(), edges.end(),
+                            std::array<int, 2>{edges[i][1], edges[i][0]}))
+      ++r.boundary_edges;
+  }
+  return r;
+}
+
+double CarveSphere(BoneState* bone, const Vec3& center, double radius_mm, double max_depth_mm,
+                   const BoneCarveOptions& options) {
+  if (!(radius_mm > 0) || !(max_depth_mm > 0)) return 0.0;
+  const Region region{center, radius_mm + options.max_edge_mm};
+  auto target = [&](const Vec3& p, Vec3* q) {
+    const Vec3 d = p - center;
+    const double r = d.norm();
+    if (r >= radius_mm || r < 1e-12) return false;
+    *q = center + d * (radius_mm / r);
+    return true;
+  };
+  auto view = [&](const Vec3& p) { return Vec3(center - p); };
+  return Reshape(bone, region, max_depth_mm, target, view, options);
+}
+
+double PushAlong(BoneState* bone, const Vec3& tip, const Vec3& axis, double radius_mm,
+                 double depth_mm, const BoneCarveOptions& options) {
+  if (!(radius_mm > 0) || !(depth_mm > 0) || !(axis.norm() > 0)) return 0.0;
+  const Vec3 u = axis.normalized();
+  const Vec3 c = tip + 0.5 * (depth_mm - radius_mm) * u;
+  const double half = 0.5 * (depth_mm + radius_mm);
+  const Region region{c, std::sqrt(half * half + radius_mm * radius_mm) + options.max_edge_mm};
+  auto target = [&](const Vec3& p, Vec3* q) {
+    const Vec3 d = p - tip;
+    const double s = d.dot(u);
+    const double rho = (d - s * u).norm();
+    if (rho >= radius_mm || s < -radius_mm) return false;
+    const double f = depth_mm * (1 - (rho / radius_mm) * (rho / radius_mm));
+    if (s >= f) return false;
+    *q = p + (f - s) * u;
+    return true;
+  };
+  auto view = [&](const Vec3&) { return Vec3(-u); };
+  return Reshape(bone, region, depth_mm + radius_mm, target, view, options);
+}
+
+}  // namespace arthrosim::physics
