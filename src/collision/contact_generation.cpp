@@ -73,48 +73,46 @@ double BoxDist2(const Box& a, const Box& b) {
 
 // The nearest triangle among the candidates, as if each were tested in ascending order (the
 // first of exactly equal minima wins), and the pseudo-normal summed over the ties in ascending
-// order. Candidates are visited by increasing box distance and those whose box is clearly
-// farther than the best so far are skipped: they can be neither the minimum nor a tie, so the
-// result is the same as testing them all. `qbox` bounds the query, `bvh` holds the triangles'
-// boxes.
+// order. The candidate with the nearest box is tested first; then a candidate whose box is
+// clearly farther than the best so far is skipped: it can be neither the minimum nor a tie, so
+// the result is the same as testing them all. `qbox` bounds the query, `bvh` holds the
+// triangles' boxes.
 Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<std::int32_t>& cand,
                          const TriangleBvh& bvh, const std::vector<Vec3>& p,
                          const std::vector<mesh::Tri>& tris) {
   Nearest best;
-  if (cand.empty()) return best;
-  struct Item {
-    double box_d2;
-    std::int32_t tri;
-    double d2;
-  };
-  thread_local std::vector<Item> items;
-  items.clear();
-  for (std::int32_t t : cand) items.push_back({BoxDist2(qbox, bvh.TriangleBox(t)), t, -1});
-  std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) {
-    return a.box_d2 != b.box_d2 ? a.box_d2 < b.box_d2 : a.tri < b.tri;
-  });
-  for (Item& it : items) {
-    // Beyond the tie tolerance below, with a wide margin for rounding: cannot matter.
-    if (best.found && it.box_d2 > best.pair.dist2 * (1 + 1e-6) + 1e-12) break;
-    const ClosestPair c = Closest(q, LocalTriangle(p, tris[it.tri]));
-    it.d2 = c.dist2;
+  const std::size_t n = cand.size();
+  if (n == 0) return best;
+  thread_local std::vector<double> box_d2, d2;
+  box_d2.resize(n);
+  d2.assign(n, -1.0);
+  std::size_t first = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    box_d2[i] = BoxDist2(qbox, bvh.TriangleBox(cand[i]));
+    if (box_d2[i] < box_d2[first]) first = i;
+  }
+  auto test = [&](std::size_t i) {
+    const ClosestPair c = Closest(q, LocalTriangle(p, tris[cand[i]]));
+    d2[i] = c.dist2;
     if (!best.found || c.dist2 < best.pair.dist2 ||
-        (c.dist2 == best.pair.dist2 && it.tri < best.tri)) {
+        (c.dist2 == best.pair.dist2 && cand[i] < best.tri)) {
       best.found = true;
-      best.tri = it.tri;
+      best.tri = cand[i];
       best.pair = c;
     }
+  };
+  test(first);
+  for (std::size_t i = 0; i < n; ++i) {
+    // Beyond the tie tolerance below, with a wide margin for rounding: cannot matter.
+    if (i == first || box_d2[i] > best.pair.dist2 * (1 + 1e-6) + 1e-12) continue;
+    test(i);
   }
   best.dist = std::sqrt(best.pair.dist2);
   const double tie = best.pair.dist2 * (1 + 1e-9) + 1e-18;
-  thread_local std::vector<std::int32_t> ties;
-  ties.clear();
-  for (const Item& it : items) {
-    if (it.d2 >= 0 && it.d2 <= tie) ties.push_back(it.tri);
-  }
-  std::sort(ties.begin(), ties.end());
   Vec3 sum = Vec3::Zero();
-  for (std::int32_t t : ties) sum += FaceNormal(p, tris[t]);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (d2[i] >= 0 && d2[i] <= tie) sum += FaceNormal(p, tris[cand[i]]);
+  }
   best.pseudo = SafeNormalized(sum, FaceNormal(p, tris[best.tri]));
   return best;
 }
@@ -174,28 +172,45 @@ struct Sweep {
 };
 
 // First substep at which the target (whose box is target_box) comes within `reach` of the swept
-// core. Substeps whose core box is farther than reach from target_box cannot touch: skipped.
-// `now`, if given, is Closest(sw.sub.back(), target), already known to the caller.
-bool FirstTouch(const Sweep& sw, double reach, const Simplex& target, const Box& target_box,
-                ClosestPair* at, const ClosestPair* now = nullptr) {
+// core, -1 if none; `last`, if given, is the caller's Closest(sw.sub.back(), target). Substeps
+// whose core box is farther than reach from target_box, or whose plane separates them, cannot
+// touch: skipped without an exact test.
+int FirstTouch(const Sweep& sw, double reach, const Simplex& target, const Box& target_box,
+               ClosestPair* at, const ClosestPair* last = nullptr) {
   const double reach2 = reach * reach;
-  for (std::size_t s = 0; s < sw.sub.size(); ++s) {
-    if (now != nullptr && s + 1 == sw.sub.size()) {
-      if (now->dist2 < reach2) {
-        *at = *now;
-        return true;
-      }
-      return false;
+  const std::size_t n = sw.sub.size();
+  for (std::size_t s = 0; s < n; ++s) {
+    if (last != nullptr && s + 1 == n) {  // already computed by the caller
+      if (!(last->dist2 < reach2)) return -1;
+      *at = *last;
+      return static_cast<int>(s);
     }
     if (!NearBoxes(sw.sub_box[s], reach + kCullSlack, target_box)) continue;
     if (!PlanesAllowReach(sw.sub[s], target, reach)) continue;
     const ClosestPair c = Closest(sw.sub[s], target);
     if (c.dist2 < reach2) {
       *at = c;
+      return static_cast<int>(s);
+    }
+  }
+  return -1;
+}
+
+// Conservative: false when no substep can bring the target within reach (cheap tests only).
+bool MayTouch(const Sweep& sw, double reach, const Simplex& target, const Box& target_box) {
+  for (std::size_t s = 0; s < sw.sub.size(); ++s) {
+    if (NearBoxes(sw.sub_box[s], reach + kCullSlack, target_box) &&
+        PlanesAllowReach(sw.sub[s], target, reach)) {
       return true;
     }
   }
   return false;
+}
+
+// Closest(sw.sub.back(), target), reusing the touch when it happened at the last substep.
+ClosestPair Now(const Sweep& sw, int touched_at, const ClosestPair& touch, const Simplex& target) {
+  if (touched_at + 1 == static_cast<int>(sw.sub.size())) return touch;
+  return Closest(sw.sub.back(), target);
 }
 
 struct Builder {
@@ -261,7 +276,6 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
   }
   std::sort(verts.begin(), verts.end());
   verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-  const Simplex& now = sw.sub.back();
   auto make = [&](const ClosestPair& touch, const ClosestPair& cur, const Vec3& fallback) {
     PointContact c;
     c.target = PointContact::Target::kSoftBody;
@@ -282,8 +296,9 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     if ((p.array() < query.lo.array()).any() || (p.array() > query.hi.array()).any()) continue;
     if (B->SoftFixed(body, node)) continue;
     ClosestPair touch;
-    if (!FirstTouch(sw, reach, PointSimplex(p), Box{p, p}, &touch)) continue;
-    const ClosestPair cur = Closest(now, PointSimplex(p));
+    const int at = FirstTouch(sw, reach, PointSimplex(p), Box{p, p}, &touch);
+    if (at < 0) continue;
+    const ClosestPair cur = Now(sw, at, touch, PointSimplex(p));
     PointContact c = make(touch, cur, -VertexNormal(e.surface, e.positions, v));
     c.nodes = {node, -1, -1, -1};
     c.weights = {1, 0, 0, 0};
@@ -299,13 +314,15 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     const mesh::Tri& g = e.surface.tris[t];
     if (B->SoftFixed(body, g[0]) && B->SoftFixed(body, g[1]) && B->SoftFixed(body, g[2])) continue;
     const Simplex tri = LocalTriangle(e.positions, e.surface.local_tris[t]);
-    // The current closest point first: at a vertex there is nothing to add.
-    const ClosestPair cur = Closest(now, tri);
+    // The current closest point first: at a vertex there is nothing to add (often the case),
+    // and the last substep of the touch search is then known.
+    if (!MayTouch(sw, reach, tri, e.bvh.TriangleBox(t))) continue;
+    const ClosestPair cur = Closest(sw.sub.back(), tri);
     const auto& w = cur.wb;
     const int zeros = (w[0] <= 0) + (w[1] <= 0) + (w[2] <= 0);
     if (zeros >= 2) continue;  // at a vertex: the vertex contact covers it
     ClosestPair touch;
-    if (!FirstTouch(sw, reach, tri, e.bvh.TriangleBox(t), &touch, &cur)) continue;
+    if (FirstTouch(sw, reach, tri, e.bvh.TriangleBox(t), &touch, &cur) < 0) continue;
     if (zeros == 1) {
       const int k = w[0] <= 0 ? 0 : (w[1] <= 0 ? 1 : 2);
       const std::pair<std::int32_t, std::int32_t> edge{std::min(g[(k + 1) % 3], g[(k + 2) % 3]),
@@ -353,8 +370,9 @@ void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
     if (seg_box[i].Empty() || !sw.Near(reach, seg_box[i])) continue;
     const Simplex seg = SegmentSimplex(x.col(a), x.col(b));
     ClosestPair touch;
-    if (!FirstTouch(sw, reach, seg, seg_box[i], &touch)) continue;
-    const ClosestPair cur = Closest(sw.sub.back(), seg);
+    const int at = FirstTouch(sw, reach, seg, seg_box[i], &touch);
+    if (at < 0) continue;
+    const ClosestPair cur = Now(sw, at, touch, seg);
     PointContact c = ThreadPoint(thread, a, b, cur.wb[1]);
     if (c.nodes[1] < 0) {
       if (c.nodes[0] == last_single) continue;
@@ -730,14 +748,27 @@ void Detect(const Model& model, const State& state,
   // completeness, by the remaining values.
   std::vector<std::size_t> order(B.contacts.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  auto key = [&](std::size_t i) {
-    const PointContact& c = B.contacts[i];
-    return std::make_tuple(c.tool_slot, static_cast<int>(c.target), c.index,
-                           static_cast<int>(B.kinds[i]), c.obstacle_id, c.nodes, c.weights,
-                           c.offset_mm, c.normal.x(), c.normal.y(), c.normal.z());
+  // Lexicographic on (tool, target, body, obstacle kind, obstacle, nodes, weights, offset,
+  // normal), stopping at the first difference.
+  auto less = [&](std::size_t i, std::size_t j) {
+    const PointContact &a = B.contacts[i], &b = B.contacts[j];
+    if (a.tool_slot != b.tool_slot) return a.tool_slot < b.tool_slot;
+    if (a.target != b.target) return a.target < b.target;
+    if (a.index != b.index) return a.index < b.index;
+    if (B.kinds[i] != B.kinds[j]) return B.kinds[i] < B.kinds[j];
+    if (a.obstacle_id != b.obstacle_id) return a.obstacle_id < b.obstacle_id;
+    if (a.nodes != b.nodes) return a.nodes < b.nodes;
+    if (a.weights != b.weights) return a.weights < b.weights;
+    if (a.offset_mm != b.offset_mm) return a.offset_mm < b.offset_mm;
+    for (int k = 0; k < 3; ++k) {
+      if (a.normal[k] != b.normal[k]) return a.normal[k] < b.normal[k];
+    }
+    return false;
   };
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  // Contacts are mostly created in order already: sort only when needed.
+  if (!std::is_sorted(order.begin(), order.end(), less)) {
+    std::stable_sort(order.begin(), order.end(), less);
+  }
   out->contacts.clear();
   out->obstacle_kind.clear();
   for (std::size_t i : order) {
