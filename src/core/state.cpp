@@ -40,6 +40,7 @@ void VisitState(const State& s, V&& v) {
   v(s.time_s);
   for (const SoftBodyState& b : s.soft_bodies) {
     v(b.x); v(b.v); v(b.x_rest); v(b.tets); v(b.tet_alive); v(b.dv_warm);
+    v(b.x_factor);
   }
   for (const BoneState& b : s.bones) {
     v(b.surface.nodes); v(b.surface.tris); v(b.removed_volume_mm3);

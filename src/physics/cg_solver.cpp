@@ -1,5 +1,6 @@
 #include "arthrosim/physics/cg_solver.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace arthrosim::physics {
@@ -18,13 +19,14 @@ double Dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 }  // namespace
 
 CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
-                  int max_iterations, double tolerance) {
+                  int max_iterations, double tolerance, double reference_norm) {
   CgResult result;
   const double b_norm = std::sqrt(Dot(b, b));
   if (b_norm == 0 || !std::isfinite(b_norm)) {
     x->setZero();
     return result;
   }
+  const double scale = std::max(b_norm, reference_norm);
   const Eigen::Index n = b.size();
   Eigen::VectorXd r(n), z(n), p(n), q(n);
   a.Apply(*x, &q);
@@ -40,7 +42,7 @@ CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorX
   p = z;
   double rz = Dot(r, z);
   int it = 0;
-  while (r_norm > tolerance * b_norm && it < max_iterations) {
+  while (r_norm > tolerance * scale && it < max_iterations) {
     a.Apply(p, &q);
     const double pq = Dot(p, q);
     if (!(pq > 0)) break;  // breakdown (not SPD in floating point): keep the current x
@@ -49,7 +51,7 @@ CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorX
     r -= alpha * q;
     ++it;
     r_norm = std::sqrt(Dot(r, r));
-    if (r_norm <= tolerance * b_norm) break;
+    if (r_norm <= tolerance * scale) break;
     a.Precondition(r, &z);
     const double rz_next = Dot(r, z);
     const double beta = rz_next / rz;
@@ -57,8 +59,8 @@ CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorX
     p = z + beta * p;
   }
   result.iterations = it;
-  result.relative_residual = r_norm / b_norm;
-  result.converged = r_norm <= tolerance * b_norm;
+  result.relative_residual = r_norm / scale;
+  result.converged = r_norm <= tolerance * scale;
   return result;
 }
 

@@ -2,8 +2,8 @@
 
 #include <Eigen/Sparse>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <ctime>
 #include <functional>
 #include <initializer_list>
 #include <string>
@@ -19,10 +19,17 @@
 namespace arthrosim::physics {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+// Stage timers read the CPU time of the process (all threads): on a shared machine it is far
+// steadier than wall time, and for one thread it is the busy time of the step.
+struct Clock {
+  using time_point = double;  // ms
+  static double now() {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+  }
+};
+double MsSince(double t0) { return Clock::now() - t0; }
 
 inline auto Seg(Eigen::VectorXd& v, std::int32_t slot) {
   return v.segment<3>(3 * static_cast<Eigen::Index>(slot));
@@ -42,15 +49,6 @@ constexpr std::int64_t kTetBlock = 128;  // fixed ParallelFor block (independent
 
 }  // namespace
 
-struct SoftSystem::RestFactor {
-  double h = -1;
-  std::vector<Eigen::Index> compact;  // per slot: first scalar unknown, -1 if not free
-  Eigen::Index n = 0;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
-  bool ok = false;
-  mutable Eigen::VectorXd r, z;
-};
-
 SoftSystem::SoftSystem() = default;
 SoftSystem::~SoftSystem() = default;
 SoftSystem::SoftSystem(SoftSystem&&) noexcept = default;
@@ -66,7 +64,9 @@ void SoftSystem::Build(const Model& model, const State& state) {
                           " soft bodies, model has ", std::to_string(model.soft_bodies.size())}));
   }
   arkode_.reset();
+  pattern_dirty_ = true;
   rest_dirty_ = true;
+  anchor_dirty_ = true;
   Layout(model, state);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const SoftBodyState& sb = state.soft_bodies[b];
@@ -127,6 +127,8 @@ void SoftSystem::Layout(const Model& model, const State& state) {
   free_.assign(ns, 0);
   precond_.assign(ns, Mat3::Zero());
   node_rot_.assign(ns, Mat3::Identity());
+  anchor_rot_.assign(ns, Mat3::Identity());
+  compact_.assign(ns, -1);
   kmat_.Reset(slots_);
   for (std::size_t b = 0; b < nb; ++b) {
     for (std::size_t i = 0; i < bodies_[b].slot.size(); ++i) {
@@ -197,6 +199,7 @@ void SoftSystem::Layout(const Model& model, const State& state) {
   b_.setZero(3 * slots_);
   dv_.setZero(3 * slots_);
   tmp_.setZero(3 * slots_);
+  xa_.setZero(3 * slots_);
 }
 
 void SoftSystem::RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb) {
@@ -235,6 +238,7 @@ void SoftSystem::AddElement(int body, std::int32_t tet, const SoftBodyState& sb)
     auto it = std::lower_bound(inc.begin(), inc.end(), ref);
     if (it == inc.end() || !(*it == ref)) inc.insert(it, ref);
   }
+  pattern_dirty_ = true;
   for (int a = 0; a < 4; ++a) RecomputeSlot(s[static_cast<std::size_t>(a)]);
 }
 
@@ -254,6 +258,7 @@ void SoftSystem::RemoveElement(int body, std::int32_t tet) {
   }
   bd.rest[static_cast<std::size_t>(tet)] = TetRest{};
   rest_dirty_ = true;
+  pattern_dirty_ = true;
   for (int a = 0; a < 4; ++a) RecomputeSlot(s[static_cast<std::size_t>(a)]);
 }
 
@@ -301,13 +306,17 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
   SoftBodyState& sb = state->soft_bodies[static_cast<std::size_t>(body)];
   const auto n0 = static_cast<std::int32_t>(sb.x.cols());
   const auto k = static_cast<std::int32_t>(parents.size());
+  const bool has_anchor = sb.x_factor.cols() == n0 && n0 > 0;
   Points x(3, n0 + k), v(3, n0 + k), xr(3, n0 + k), dw(3, n0 + k);
+  Points xf(3, has_anchor ? n0 + k : 0);
+  if (has_anchor) xf.leftCols(n0) = sb.x_factor;
   x.leftCols(n0) = sb.x;
   v.leftCols(n0) = sb.v;
   xr.leftCols(n0) = sb.x_rest;
   dw.leftCols(n0) = sb.dv_warm;
   for (std::int32_t i = 0; i < k; ++i) {
     Vec3 px = Vec3::Zero(), pv = Vec3::Zero(), pr = Vec3::Zero(), pd = Vec3::Zero();
+    Vec3 pf = Vec3::Zero();
     for (int a = 0; a < 4; ++a) {
       const std::int32_t p = parents[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)];
       const double w = weights[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)];
@@ -316,7 +325,9 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
       pv += w * sb.v.col(p);
       pr += w * sb.x_rest.col(p);
       pd += w * sb.dv_warm.col(p);
+      if (has_anchor) pf += w * sb.x_factor.col(p);
     }
+    if (has_anchor) xf.col(n0 + i) = pf;
     x.col(n0 + i) = px;
     v.col(n0 + i) = pv;
     xr.col(n0 + i) = pr;
@@ -326,6 +337,7 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
   sb.v = std::move(v);
   sb.x_rest = std::move(xr);
   sb.dv_warm = std::move(dw);
+  if (has_anchor) sb.x_factor = std::move(xf);
   if (NeedsRebuild(body, k)) {
     Build(model, *state);  // out of slot capacity: re-layout (same results, new room)
     return n0;
@@ -338,6 +350,7 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
     slot_node_[static_cast<std::size_t>(slot)] = NodeRef{body, n0 + i};
     RecomputeSlot(slot);
   }
+  pattern_dirty_ = true;
   return n0;
 }
 
@@ -434,6 +447,13 @@ void SoftSystem::Gather(const State& state) {
     if (free_[static_cast<std::size_t>(s)]) {
       Seg(v_, s) = sb.v.col(r.node);
       Seg(dv_, s) = sb.dv_warm.col(r.node);
+    }
+    // Factor anchor: a change of any bit means a new factor (a pure function of State).
+    const Vec3 a =
+        r.node < sb.x_factor.cols() ? Vec3(sb.x_factor.col(r.node)) : Vec3(sb.x_rest.col(r.node));
+    if (!(Seg(xa_, s).array() == a.array()).all()) {
+      Seg(xa_, s) = a;
+      anchor_dirty_ = true;
     }
   }
 }
@@ -578,7 +598,7 @@ void SoftSystem::BuildPointTerms(const Model& model, const Eigen::VectorXd& x, C
   }
 }
 
-void SoftSystem::BuildPreconditioner(double h) {
+void SoftSystem::BuildBlockJacobi(double h) {
   for (std::int32_t s = 0; s < slots_; ++s) {
     const auto i = static_cast<std::size_t>(s);
     if (!free_[i]) continue;
@@ -607,87 +627,127 @@ void SoftSystem::BuildPreconditioner(double h) {
     const Mat3 inv = precond_[i].inverse();
     precond_[i] = inv.allFinite() ? inv : Mat3::Identity();
   }
+}
+
+void SoftSystem::BuildPreconditioner(double h) {
+  refactored_ = false;
+  factor_ms_ = 0;
   if (preconditioner_ == Preconditioner::kRestCholesky) {
-    if (rest_dirty_ || !rest_factor_ || rest_factor_->h != h) FactorRestSystem(h);
-    // Node rotations: polar of the sum of incident element rotations, in (body, tet) order.
-    for (std::int32_t s = 0; s < slots_; ++s) {
-      const auto i = static_cast<std::size_t>(s);
-      if (!free_[i]) continue;
-      Mat3 sum = Mat3::Zero();
-      for (const ElemRef& r : incident_[i]) {
-        const Body& bd = bodies_[static_cast<std::size_t>(r.body)];
-        if (bd.rest[static_cast<std::size_t>(r.tet)].degenerate) continue;
-        sum += bd.rotation[static_cast<std::size_t>(r.tet)];
-      }
-      node_rot_[i] = PolarRotation(sum);
+    const double t0 = Clock::now();
+    if (pattern_dirty_) AnalyzeFactor();
+    if (rest_dirty_ || anchor_dirty_ || factor_h_ != h) FactorRestSystem(h);
+    factor_ms_ = refactored_ ? MsSince(t0) : 0.0;
+    if (factor_.ok()) {
+      // Warp: the current node rotation (polar of the sum of incident element rotations, in
+      // (body, tet) order) times the inverse anchor rotation.
+      ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
+        for (std::int64_t s = begin; s < end; ++s) {
+          const auto i = static_cast<std::size_t>(s);
+          if (!free_[i]) continue;
+          Mat3 sum = Mat3::Zero();
+          for (const ElemRef& r : incident_[i]) {
+            const Body& bd = bodies_[static_cast<std::size_t>(r.body)];
+            if (bd.rest[static_cast<std::size_t>(r.tet)].degenerate) continue;
+            sum += bd.rotation[static_cast<std::size_t>(r.tet)];
+          }
+          node_rot_[i] = PolarRotation(sum) * anchor_rot_[i].transpose();
+        }
+      });
+      return;
     }
   }
+  BuildBlockJacobi(h);
+}
+
+void SoftSystem::AnalyzeFactor() {
+  // Unknowns: free slots in slot order; pairs: kmat_'s live pairs between free slots (indexed
+  // like kmat_'s blocks, but the pattern and ordering depend on the set of pairs only).
+  std::int32_t n = 0;
+  for (std::int32_t s = 0; s < slots_; ++s)
+    compact_[static_cast<std::size_t>(s)] = free_[static_cast<std::size_t>(s)] ? n++ : -1;
+  std::vector<std::array<std::int32_t, 2>> pairs(static_cast<std::size_t>(kmat_.block_capacity()),
+                                                 std::array<std::int32_t, 2>{-1, -1});
+  for (std::int32_t e = 0; e < kmat_.block_capacity(); ++e) {
+    if (!kmat_.block_live(e)) continue;
+    const std::int32_t r = compact_[static_cast<std::size_t>(kmat_.block_row(e))];
+    const std::int32_t c = compact_[static_cast<std::size_t>(kmat_.block_col(e))];
+    if (r >= 0 && c >= 0) pairs[static_cast<std::size_t>(e)] = {r, c};
+  }
+  factor_.Analyze(n, pairs);
+  fdiag_.assign(static_cast<std::size_t>(n), Mat3::Zero());
+  fpair_.assign(pairs.size(), Mat3::Zero());
+  pw_.setZero(3 * static_cast<Eigen::Index>(n));
+  pattern_dirty_ = false;
+  rest_dirty_ = true;
 }
 
 void SoftSystem::FactorRestSystem(double h) {
-  // The step matrix with every rotation = I. It depends on rest data, topology and h only,
-  // so it is rebuilt lazily after changes and is identical after a restore.
-  if (!rest_factor_) rest_factor_ = std::make_unique<RestFactor>();
-  RestFactor& rf = *rest_factor_;
+  // The step matrix with the element rotations of the anchor positions. A function of rest
+  // data, topology, h and the anchor only, so it is identical after a restore.
+  refactored_ = true;
   rest_dirty_ = false;
-  rf.h = h;
-  rf.compact.assign(static_cast<std::size_t>(slots_), -1);
-  rf.n = 0;
-  for (std::int32_t s = 0; s < slots_; ++s) {
-    if (free_[static_cast<std::size_t>(s)]) {
-      rf.compact[static_cast<std::size_t>(s)] = rf.n;
-      rf.n += 3;
-    }
-  }
-  std::vector<Eigen::Triplet<double>> trip;
-  auto put = [&](std::int32_t si, std::int32_t sj, const Mat3& m) {
-    const Eigen::Index r = rf.compact[static_cast<std::size_t>(si)];
-    const Eigen::Index c = rf.compact[static_cast<std::size_t>(sj)];
-    if (r < 0 || c < 0) return;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) trip.emplace_back(r + i, c + j, m(i, j));
-  };
+  anchor_dirty_ = false;
+  factor_h_ = h;
+  for (Mat3& m : fdiag_) m.setZero();
+  for (Mat3& m : fpair_) m.setZero();
+  for (Mat3& m : anchor_rot_) m.setZero();
   std::array<Mat3, 10> blocks;
-  const Mat3 eye = Mat3::Identity();
   for (const Body& bd : bodies_) {
     const double scale = h * (h + bd.beta);
     for (std::size_t t = 0; t < bd.rest.size(); ++t) {
       if (!bd.alive[t] || bd.rest[t].degenerate) continue;
-      ElementStiffnessBlocks(bd.rest[t], eye, bd.lame, scale, &blocks);
       const auto& sl = bd.tet_slot[t];
-      for (int a = 0; a < 4; ++a) put(sl[a], sl[a], blocks[a]);
+      const Mat3 f = DeformationGradient(bd.rest[t], Seg(xa_, sl[0]), Seg(xa_, sl[1]),
+                                         Seg(xa_, sl[2]), Seg(xa_, sl[3]));
+      const Mat3 rot = PolarRotation(f);
+      ElementStiffnessBlocks(bd.rest[t], rot, bd.lame, scale, &blocks);
+      for (int a = 0; a < 4; ++a) {
+        const auto si = static_cast<std::size_t>(sl[static_cast<std::size_t>(a)]);
+        anchor_rot_[si] += rot;
+        const std::int32_t c = compact_[si];
+        if (c >= 0) fdiag_[static_cast<std::size_t>(c)] += blocks[static_cast<std::size_t>(a)];
+      }
       for (int e = 0; e < 6; ++e) {
-        const int a = kTetEdges[e][0], b = kTetEdges[e][1];
-        put(sl[a], sl[b], blocks[4 + e]);
-        put(sl[b], sl[a], blocks[4 + e].transpose());
+        const std::int32_t idx = bd.tet_pair[t][static_cast<std::size_t>(e)];
+        if (idx < 0) continue;
+        const std::int32_t si =
+            sl[static_cast<std::size_t>(kTetEdges[static_cast<std::size_t>(e)][0])];
+        const std::int32_t sj =
+            sl[static_cast<std::size_t>(kTetEdges[static_cast<std::size_t>(e)][1])];
+        if (si < sj) {
+          fpair_[static_cast<std::size_t>(idx)] += blocks[static_cast<std::size_t>(4 + e)];
+        } else {
+          fpair_[static_cast<std::size_t>(idx)] +=
+              blocks[static_cast<std::size_t>(4 + e)].transpose();
+        }
       }
     }
   }
   for (std::int32_t s = 0; s < slots_; ++s) {
     const auto i = static_cast<std::size_t>(s);
-    put(s, s, (mass_[i] + h * alpha_mass_[i]) * eye);
+    anchor_rot_[i] = PolarRotation(anchor_rot_[i]);
+    const std::int32_t c = compact_[i];
+    if (c >= 0)
+      fdiag_[static_cast<std::size_t>(c)].diagonal().array() += mass_[i] + h * alpha_mass_[i];
   }
-  Eigen::SparseMatrix<double> a(rf.n, rf.n);
-  a.setFromTriplets(trip.begin(), trip.end());
-  rf.ldlt.compute(a);
-  rf.ok = rf.ldlt.info() == Eigen::Success;
-  rf.r.setZero(rf.n);
-  rf.z.setZero(rf.n);
+  factor_.Factor(fdiag_, fpair_);
 }
 
 void SoftSystem::Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const {
-  if (preconditioner_ == Preconditioner::kRestCholesky && rest_factor_ && rest_factor_->ok) {
-    const RestFactor& rf = *rest_factor_;
+  if (preconditioner_ == Preconditioner::kRestCholesky && factor_.ok()) {
     for (std::int32_t s = 0; s < slots_; ++s) {
-      const Eigen::Index c = rf.compact[static_cast<std::size_t>(s)];
+      const std::int32_t c = compact_[static_cast<std::size_t>(s)];
       if (c >= 0)
-        rf.r.segment<3>(c) = node_rot_[static_cast<std::size_t>(s)].transpose() * Seg(r, s);
+        pw_.segment<3>(3 * c) = node_rot_[static_cast<std::size_t>(s)].transpose() * Seg(r, s);
     }
-    rf.z = rf.ldlt.solve(rf.r);
-    z->setZero();
+    factor_.Solve(pw_.data());
     for (std::int32_t s = 0; s < slots_; ++s) {
-      const Eigen::Index c = rf.compact[static_cast<std::size_t>(s)];
-      if (c >= 0) Seg(*z, s) = node_rot_[static_cast<std::size_t>(s)] * rf.z.segment<3>(c);
+      const std::int32_t c = compact_[static_cast<std::size_t>(s)];
+      if (c >= 0) {
+        Seg(*z, s) = node_rot_[static_cast<std::size_t>(s)] * pw_.segment<3>(3 * c);
+      } else {
+        Seg(*z, s).setZero();
+      }
     }
     return;
   }
@@ -854,11 +914,21 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   const StepOperator op(
       [this](const Eigen::VectorXd& x, Eigen::VectorXd* y) { ApplySystem(x, y); },
       [this](const Eigen::VectorXd& r, Eigen::VectorXd* z) { Precondition(r, z); });
+  // Accuracy is set against the weight impulse h |W| as well as |b|: once the tissue hangs
+  // balanced, |b| -> 0 and a residual relative to |b| alone would chase round-off.
+  double m2 = 0;
+  for (std::int32_t s = 0; s < slots_; ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    if (free_[i]) m2 += mass_[i] * mass_[i];
+  }
+  const double reference = h * model.options.gravity_mm_s2.norm() * std::sqrt(m2);
   const CgResult cg =
-      SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance);
+      SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance, reference);
   stats.solve_ms = MsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.cg_relative_residual = cg.relative_residual;
+  stats.refactored = refactored_;
+  stats.factor_ms = factor_ms_;
 
   t0 = Clock::now();
   for (std::int32_t s = 0; s < slots_; ++s) {
@@ -874,6 +944,12 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   }
   Scatter(state);
   FillOutputs(model, contacts, springs);
+  if (preconditioner_ == Preconditioner::kRestCholesky && refactor_iterations_ > 0 &&
+      cg.iterations > refactor_iterations_) {
+    // The factor has drifted from the current rotations: anchor it at the new positions.
+    for (SoftBodyState& sb : state->soft_bodies) sb.x_factor = sb.x;
+    stats.anchor_moved = true;
+  }
   stats.update_ms = MsSince(t0);
   for (const Body& bd : bodies_) {
     for (std::size_t t = 0; t < bd.rest.size(); ++t) {

@@ -20,6 +20,10 @@ struct SoftBodyState {
   std::vector<mesh::Tet> tets;       ///< element connectivity; initial tets first, splits appended
   std::vector<std::uint8_t> tet_alive;  ///< 1 = element present, 0 = removed (cut/shaved)
   Points dv_warm;                    ///< 3 x N last velocity increment, CG warm start
+  /// 3 x N positions (mm) at which the soft-tissue CG preconditioner was last factored; empty =
+  /// rest positions, missing columns = their rest positions. Set by the solver; kept here so a
+  /// restored run rebuilds the same preconditioner and continues bit for bit.
+  Points x_factor;
 };
 
 /// Bone surface state (reshaped by burr and awl).

@@ -35,6 +35,10 @@ class BlockSparseMatrix {
   Mat3& block(std::int32_t e) { return blocks_[static_cast<std::size_t>(e)]; }
   std::int32_t block_row(std::int32_t e) const { return pairs_[static_cast<std::size_t>(e)][0]; }
   std::int32_t block_col(std::int32_t e) const { return pairs_[static_cast<std::size_t>(e)][1]; }
+  /// Number of pair storage slots (live or recycled): valid block indices are below it.
+  std::int32_t block_capacity() const { return static_cast<std::int32_t>(pairs_.size()); }
+  /// True when block index e holds a live pair.
+  bool block_live(std::int32_t e) const { return pairs_[static_cast<std::size_t>(e)][0] >= 0; }
   /// Number of live off-diagonal pairs.
   std::int64_t pair_count() const { return live_pairs_; }
 

@@ -18,13 +18,15 @@ class SpdOperator {
 
 struct CgResult {
   int iterations = 0;
-  double relative_residual = 0;  ///< |b - A x| / |b| (recursive residual), 0 when b = 0
+  double relative_residual = 0;  ///< |b - A x| / max(|b|, reference) (recursive residual)
   bool converged = false;
 };
 
-/// Solves A x = b starting from *x (warm start). Stops when |r| <= tolerance |b| or after
-/// max_iterations products. b = 0 gives x = 0 with no iteration.
+/// Solves A x = b starting from *x (warm start). Stops when |r| <= tolerance max(|b|,
+/// reference_norm) or after max_iterations products. reference_norm is the right-hand side
+/// scale that sets the required accuracy (0: relative to |b| alone); it keeps a nearly
+/// balanced system (|b| -> 0) from chasing round-off. b = 0 gives x = 0 with no iteration.
 CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
-                  int max_iterations, double tolerance);
+                  int max_iterations, double tolerance, double reference_norm = 0);
 
 }  // namespace arthrosim::physics

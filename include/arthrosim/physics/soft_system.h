@@ -25,6 +25,7 @@
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/physics/block_ldlt.h"
 #include "arthrosim/physics/block_sparse.h"
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/corotational_fem.h"
@@ -42,21 +43,29 @@ enum class SystemProduct : std::uint8_t {
 /// CG preconditioner.
 enum class Preconditioner : std::uint8_t {
   kBlockJacobi,   ///< inverse 3x3 diagonal blocks of the current system matrix
-  kRestCholesky,  ///< "warped" rest factorisation: P^-1 = Rn K0^-1 Rn^T with K0 the sparse
-                  ///< LDLT of the system at rest orientation (refactored only after a
-                  ///< topology/rest change or a new dt) and Rn per-node rotations (polar of
-                  ///< the sum of the incident element rotations) of the current step
+  kRestCholesky,  ///< "warped" anchored factorisation: P^-1 = W Ka^-1 W^T with Ka the sparse
+                  ///< LDLT of the system with the element rotations of the anchor positions
+                  ///< SoftBodyState::x_factor (the rest positions while it is empty), and
+                  ///< W per-node rotations taking the anchor's node rotations to the current
+                  ///< ones (node rotation: polar of the sum of the incident element rotations).
+                  ///< Refactored after a topology/rest change, a new dt or a new anchor; a step
+                  ///< whose CG needs more than refactor_iterations() sets the anchor to its
+                  ///< end positions (kept in State, so a restored run rebuilds the same factor)
 };
 
-/// Timings (wall-clock, ms) and solver figures of one Step.
+/// Timings (CPU time of the process, ms: all threads, steady on a shared machine) and solver
+/// figures of one Step.
 struct SoftStepStats {
   double rotations_ms = 0;  ///< polar rotations + elastic forces
-  double assembly_ms = 0;   ///< matrix, preconditioner, contacts, right-hand side
+  double assembly_ms = 0;   ///< matrix, preconditioner (incl. any refactorisation), contacts, rhs
+  double factor_ms = 0;     ///< part of assembly_ms spent (re)analysing/factoring, 0 if reused
   double solve_ms = 0;      ///< CG
   double update_ms = 0;     ///< integration and write-back to State
   double total_ms = 0;
   int cg_iterations = 0;
-  double cg_relative_residual = 0;   ///< final |b - A dv| / |b|
+  double cg_relative_residual = 0;   ///< final |b - A dv| / max(|b|, h |W|), W the weight
+  bool refactored = false;           ///< the preconditioner was factored in this step
+  bool anchor_moved = false;         ///< this step set x_factor (refactor at the next step)
   std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
   std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
   std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
@@ -121,6 +130,10 @@ class SoftSystem {
 
   void set_product(SystemProduct product) { product_ = product; }
   void set_preconditioner(Preconditioner p) { preconditioner_ = p; }
+  /// A step needing more CG iterations than this moves the factor anchor (0 = never: the
+  /// preconditioner stays the warped rest factor unless x_factor is set from outside).
+  void set_refactor_iterations(int n) { refactor_iterations_ = n; }
+  int refactor_iterations() const { return refactor_iterations_; }
   Preconditioner preconditioner() const { return preconditioner_; }
   SystemProduct product() const { return product_; }
   /// Lumped mass of a node (kg); 0 when it has no alive, non-degenerate element.
@@ -189,6 +202,8 @@ class SoftSystem {
   void BuildPointTerms(const Model& model, const Eigen::VectorXd& x, ContactSet* contacts,
                        SpringSet* springs, bool add_forces);
   void BuildPreconditioner(double h);
+  void BuildBlockJacobi(double h);
+  void AnalyzeFactor();
   void FactorRestSystem(double h);
   void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const;
   void ApplyStiffness(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;  // Kh x (scaled)
@@ -221,9 +236,20 @@ class SoftSystem {
   std::vector<PointTerm> terms_;
   SystemProduct product_ = SystemProduct::kAssembled;
   Preconditioner preconditioner_ = Preconditioner::kRestCholesky;
-  struct RestFactor;  // sparse LDLT of the rest-orientation system (Eigen, kept out of the header)
-  std::unique_ptr<RestFactor> rest_factor_;
-  bool rest_dirty_ = true;
+  // Anchored factor (kRestCholesky).
+  BlockLdlt factor_;
+  std::vector<std::int32_t> compact_;  // per slot: node index in the factor, -1 if not free
+  Eigen::VectorXd xa_;                 // anchor positions per slot (from State::x_factor)
+  std::vector<Mat3> anchor_rot_;       // per slot node rotation at the anchor
+  std::vector<Mat3> fdiag_, fpair_;    // factor values per compact node / per kmat_ pair
+  mutable Eigen::VectorXd pw_;         // compact work vector of the solve
+  double factor_h_ = -1;
+  bool pattern_dirty_ = true;  // topology changed: reorder and re-analyse
+  bool rest_dirty_ = true;     // rest data changed: refactor
+  bool anchor_dirty_ = true;   // anchor positions changed: refactor
+  bool refactored_ = false;
+  double factor_ms_ = 0;
+  int refactor_iterations_ = 8;
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
