@@ -117,7 +117,9 @@ TEST(BoneSurface, MaxDepthLimitsAPass) {
     if (pass == 0) {
       // One pass moves no top-face point deeper than 0.1 mm below the face.
       for (int i = 0; i < bone.surface.nodes.cols(); ++i) {
-        if (bone.surface.nodes(2, i) > 0) EXPECT_GT(bone.surface.nodes(2, i), 10 - 0.1 - 1e-12);
+        if (bone.surface.nodes(2, i) > 0) {
+          EXPECT_GT(bone.surface.nodes(2, i), 10 - 0.1 - 1e-12);
+        }
       }
     }
   }
