@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "arthrosim/core/units.h"
+#include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/tool_kinematics.h"
 
 namespace arthrosim::sim {
@@ -17,8 +18,6 @@ double MsSince(Clock::time_point t0) {
 // Events describe one step only.
 void BeginStep(State* state, Workspace* ws) {
   state->events.clear();
-  ws->soft_springs.clear();
-  ws->thread_springs.clear();
 }
 
 // Collision: contacts of tools, tissue, thread and bone at the start of the step, with the
@@ -30,10 +29,16 @@ void DetectContacts(const Model& model, const State& state,
   ws->timings.collision_ms = MsSince(t0);
 }
 
+// Runtime constraints (grasps, stitches, knots, anchors) become springs for the solvers, each
+// deformable end anchored at the other end's start-of-step position (staggered coupling).
+void BuildConstraintSprings(const State& state, Workspace* ws) {
+  ws->springs = physics::BuildPointSprings(state);
+}
+
 // Soft tissue: one linearised implicit Euler step of every soft body (FEM + CG).
 void SolveSoftTissue(const Model& model, State* state, Workspace* ws) {
   const auto t0 = Clock::now();
-  ws->timings.soft = ws->soft.Step(model, &ws->contacts.contacts, &ws->soft_springs, state);
+  ws->timings.soft = ws->soft.Step(model, &ws->contacts.contacts, &ws->springs, state);
   ws->timings.soft_ms = MsSince(t0);
 }
 
@@ -41,14 +46,25 @@ void SolveSoftTissue(const Model& model, State* state, Workspace* ws) {
 void SolveThreads(const Model& model, State* state, Workspace* ws) {
   const auto t0 = Clock::now();
   physics::StepThreads(model.threads, model.options.dt_s, model.options.gravity_mm_s2,
-                       &ws->contacts.contacts, &ws->thread_springs, &state->threads, &ws->threads);
+                       &ws->contacts.contacts, &ws->springs, &state->threads, &ws->threads);
   ws->timings.thread = ws->threads.last;
   ws->timings.thread_ms = MsSince(t0);
 }
 
-// Forces on the instruments (haptic feedback, /tools/<name>/force), from the solved contacts.
+// Forces on the instruments (haptic feedback, /tools/<name>/force): the reactions of the solved
+// contacts plus those of springs held by a tool (a grasp pulls back on the grasper).
 void AccumulateToolForces(const Workspace& ws, State* state) {
-  const std::array<Vec3, kToolSlots> f = collision::ToolForces(ws.contacts);
+  std::array<Vec3, kToolSlots> f = collision::ToolForces(ws.contacts);
+  for (const physics::PointSpring& spring : ws.springs) {
+    const SpringConstraint* c = physics::FindConstraint(*state, spring.constraint_id);
+    if (c == nullptr) continue;
+    // The spring acts on one deformable end; the tool at the other end feels the opposite.
+    for (const ConstraintEnd* end : {&c->a, &c->b}) {
+      if (end->kind == ConstraintEnd::Kind::kTool && end->index >= 0 && end->index < kToolSlots) {
+        f[static_cast<std::size_t>(end->index)] -= spring.force_n;
+      }
+    }
+  }
   for (int slot = 0; slot < kToolSlots; ++slot) state->tools[slot].force_n = f[slot];
 }
 
@@ -80,6 +96,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   ApplyToolCommands(model, input, state);
   ws->timings.kinematics_ms = MsSince(t0);
   DetectContacts(model, *state, prev_tools, ws);
+  BuildConstraintSprings(*state, ws);
   SolveSoftTissue(model, state, ws);
   SolveThreads(model, state, ws);
   AccumulateToolForces(*ws, state);

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -128,6 +129,56 @@ TEST_F(CliTest, KilledRunLeavesAReadableFile) {
                             "p=f['bodies/block/positions'][:n]; sys.exit(0 if n>5 and "
                             "p.shape[0]==n and (f['time'][1:n]>f['time'][:n-1]).all() else 1)\"";
   EXPECT_EQ(std::system(check.c_str()), 0) << check;
+}
+
+// A live session over OpenIGTLink (arthrosim serve + the streaming client), recorded with
+// --record, replays with `run --trajectory` to byte-identical HDF5 datasets; forces come back.
+TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {
+  const std::string client = std::string(ARTHROSIM_BINARY_DIR) + "/src/input/igtl_stream_client";
+  if (!fs::exists(client)) GTEST_SKIP() << "built without OpenIGTLink";
+  const std::string port = std::to_string(20000 + getpid() % 20000);
+  const std::string live = P("live.h5"), rec = P("rec.csv");
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    execl(kBinary.c_str(), kBinary.c_str(), "serve", kSmall.c_str(), "--port", port.c_str(),
+          "--record", rec.c_str(), "--out", live.c_str(), "--quiet", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // the client retries until the server listens
+  const std::string stream = client + " " + kSource + "/tests/testdata/scenes/small_session.csv --port " +
+                             port + " --forces " + P("forces.csv") + " > " + P("client.log") + " 2>&1";
+  int rc = 1;
+  for (int attempt = 0; attempt < 40 && rc != 0; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    rc = std::system(stream.c_str());
+  }
+  ASSERT_EQ(rc, 0) << stream;
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "serve status " << status;
+
+  const Result replay = Exec("run " + kSmall + " --trajectory " + rec + " --quiet --out " + P("replay.h5"));
+  ASSERT_EQ(replay.exit_code, 0) << replay.output;
+  const std::string cmp = Python() + " " + kSource + "/tests/io/compare_runs.py " + live + " " + P("replay.h5");
+  EXPECT_EQ(std::system(cmp.c_str()), 0) << cmp;
+
+  // the grasper pressed on the block: some force message is non-zero
+  std::ifstream forces(P("forces.csv"));
+  std::string line;
+  int rows = 0;
+  double max_force = 0;
+  std::getline(forces, line);  // header
+  while (std::getline(forces, line)) {
+    ++rows;
+    double t, fx, fy, fz;
+    int slot;
+    if (std::sscanf(line.c_str(), "%lf,%d,%lf,%lf,%lf", &t, &slot, &fx, &fy, &fz) == 5) {
+      max_force = std::max(max_force, std::sqrt(fx * fx + fy * fy + fz * fz));
+    }
+  }
+  EXPECT_GT(rows, 10);
+  EXPECT_GT(max_force, 0.0);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/physics/constraints.h"
 
 namespace arthrosim::sim {
 namespace {
@@ -85,6 +86,40 @@ TEST(StepTest, RestoreAndContinueEqualsAnUninterruptedRun) {
   const State saved = half;  // a copy is a save; a fresh Workspace is a restore
   const State resumed = RunSteps(m, saved, 10);
   EXPECT_TRUE(BitwiseEqual(straight, resumed));
+}
+
+// A runtime constraint from the grasper (slot 0) to the thread's free end: the thread follows the
+// tool, and the tool feels the spring's pull back (haptic feedback) — equal and opposite.
+TEST(StepTest, ToolHeldConstraintPullsTheThreadAndFeedsBackItsForce) {
+  const Model m = SmallModel();
+  State s = MakeInitialState(m);
+  Workspace ws;
+  BuildWorkspace(m, s, &ws);
+  SpringConstraint grasp;
+  grasp.tag = "grasp";
+  grasp.a.kind = ConstraintEnd::Kind::kTool;
+  grasp.a.index = 0;
+  grasp.b.kind = ConstraintEnd::Kind::kThread;
+  grasp.b.index = 0;
+  grasp.b.nodes = {10, -1, -1, -1};
+  grasp.b.weights = {1, 0, 0, 0};
+  grasp.stiffness_n_per_mm = 0.5;
+  physics::AddConstraint(&s, grasp);
+  InputFrame f;
+  f.camera.pose = m.camera.initial_pose;
+  f.tools[0].instrument = m.FindInstrument("grasper");
+  for (int k = 1; k <= 50; ++k) {
+    f.tools[0].pose.position_mm = Vec3(20.0 + 0.2 * k, 0, 40);  // up and away from the thread end
+    Step(m, f, &s, &ws);
+  }
+  const Vec3 tip = s.tools[0].pose.position_mm;
+  const Vec3 end = s.threads[0].x.col(10);
+  // the free end was lifted from z = 30 toward the tool at z = 40
+  EXPECT_GT(end.z(), 32.0);
+  // the tool is pulled toward the thread end, with the spring's force k * stretch (N)
+  const Vec3 expected = grasp.stiffness_n_per_mm * (end - tip);
+  EXPECT_GT(s.tools[0].force_n.norm(), 0.1);
+  EXPECT_LT((s.tools[0].force_n - expected).norm(), 0.02 * expected.norm() + 1e-6);
 }
 
 TEST(StepTest, BadInstrumentIndexIsAnInputError) {
