@@ -10,22 +10,58 @@ struct BlockLdlt::Impl {
   std::vector<std::array<std::int32_t, 6>> diag_pos;  // (0,0),(1,0),(2,0),(1,1),(2,1),(2,2)
   std::vector<std::array<std::int32_t, 9>> pair_pos;  // entry (3j+c, 3i+r) holds B(r, c)
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt;
-  // Solve data copied out of the factor: permutation, 1/D, L (CSC, strictly lower).
+  // Solve data copied out of the factor: permutation, 1/D, and L (unit lower) as supernodes:
+  // runs of columns [c0, c1) whose below-run rows R are shared, stored as the strictly lower
+  // triangle T of the run (column-major, w x w) and the dense panel B = L(R, c0:c1) row-major,
+  // so that each row of R is touched once per run instead of once per column.
   std::vector<std::int32_t> perm;
   std::vector<double> inv_d;
-  std::vector<std::int32_t> lp, li;
-  std::vector<double> lx;
-  mutable std::vector<double> work;
+  std::vector<std::int32_t> sn_col;  // supernode s: columns [sn_col[s], sn_col[s + 1])
+  std::vector<std::int64_t> sn_row;  // rows of s: rows[sn_row[s] .. sn_row[s + 1])
+  std::vector<std::int64_t> sn_val;  // values of s: T then B, from sn_val[s]
+  std::vector<std::int32_t> rows;
+  std::vector<double> vals;
+  std::int64_t nnz = 0;
+  mutable std::vector<double> work, acc;
 };
+
+namespace {
+
+// Below-run rows of one supernode, forward: w[rows[r]] -= B(r, :) y. W > 0: fixed width (the
+// compiler keeps y in registers); W = 0: runtime width wd. Same summation order either way.
+template <std::size_t W>
+void ForwardRows(const double* b, const std::int32_t* rows, std::size_t rc, std::size_t wd,
+                 const double* y, double* w) {
+  const std::size_t n = W ? W : wd;
+  for (std::size_t r = 0; r < rc; ++r) {
+    const double* br = b + r * n;
+    double sum = 0;
+    for (std::size_t k = 0; k < n; ++k) sum += br[k] * y[k];
+    w[rows[r]] -= sum;
+  }
+}
+
+// Backward: acc = B^T x(rows), each acc[k] summed in row order.
+template <std::size_t W>
+void BackwardRows(const double* b, const std::int32_t* rows, std::size_t rc, std::size_t wd,
+                  const double* w, double* acc) {
+  const std::size_t n = W ? W : wd;
+  for (std::size_t k = 0; k < n; ++k) acc[k] = 0;
+  for (std::size_t r = 0; r < rc; ++r) {
+    const double xr = w[rows[r]];
+    const double* br = b + r * n;
+    for (std::size_t k = 0; k < n; ++k) acc[k] += br[k] * xr;
+  }
+}
+
+}  // namespace
 
 BlockLdlt::BlockLdlt() : impl_(std::make_unique<Impl>()) {}
 BlockLdlt::~BlockLdlt() = default;
 BlockLdlt::BlockLdlt(BlockLdlt&&) noexcept = default;
 BlockLdlt& BlockLdlt::operator=(BlockLdlt&&) noexcept = default;
 
-std::int64_t BlockLdlt::factor_nonzeros() const {
-  return static_cast<std::int64_t>(impl_->lx.size());
-}
+std::int64_t BlockLdlt::factor_nonzeros() const { return impl_->nnz; }
 
 void BlockLdlt::Analyze(std::int32_t n, std::span<const std::array<std::int32_t, 2>> pairs) {
   Impl& m = *impl_;
@@ -92,9 +128,48 @@ bool BlockLdlt::Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_bl
   if (!ok_) return false;
   const auto& l = m.ldlt.matrixL().nestedExpression();
   const Eigen::Index dim = m.a.rows();
-  m.lp.assign(l.outerIndexPtr(), l.outerIndexPtr() + dim + 1);
-  m.li.assign(l.innerIndexPtr(), l.innerIndexPtr() + m.lp.back());
-  m.lx.assign(l.valuePtr(), l.valuePtr() + m.lp.back());
+  const int* lp = l.outerIndexPtr();
+  const int* li = l.innerIndexPtr();
+  const double* lx = l.valuePtr();
+  m.nnz = lp[dim];
+  // Fundamental supernodes: column j + 1 continues the run of j when L(j + 1, j) is the first
+  // entry of column j and the patterns below agree (equal counts, nested by the elimination
+  // tree).
+  m.sn_col.clear();
+  m.sn_row.assign(1, 0);
+  m.sn_val.assign(1, 0);
+  m.rows.clear();
+  m.vals.clear();
+  std::size_t max_w = 1;
+  for (Eigen::Index c0 = 0; c0 < dim;) {
+    Eigen::Index c1 = c0 + 1;
+    while (c1 < dim && lp[c1] - lp[c1 - 1] == lp[c1 + 1] - lp[c1] + 1 && lp[c1] > lp[c1 - 1] &&
+           li[lp[c1 - 1]] == c1)
+      ++c1;
+    const auto w = static_cast<std::size_t>(c1 - c0);
+    max_w = std::max(max_w, w);
+    m.sn_col.push_back(static_cast<std::int32_t>(c0));
+    // Rows below the run: the pattern of its last column.
+    const int* rb = li + lp[c1 - 1];
+    const int* re = li + lp[c1];
+    m.rows.insert(m.rows.end(), rb, re);
+    const auto rcount = static_cast<std::size_t>(re - rb);
+    const std::size_t base = m.vals.size();
+    m.vals.resize(base + w * w + rcount * w, 0.0);
+    double* t = m.vals.data() + base;
+    double* b = t + w * w;
+    for (std::size_t k = 0; k < w; ++k) {
+      const Eigen::Index col = c0 + static_cast<Eigen::Index>(k);
+      int p = lp[col];
+      for (std::size_t i = k + 1; i < w; ++i, ++p) t[k * w + i] = lx[p];   // T(i, k)
+      for (std::size_t r = 0; r < rcount; ++r, ++p) b[r * w + k] = lx[p];  // B(r, k)
+    }
+    m.sn_row.push_back(static_cast<std::int64_t>(m.rows.size()));
+    m.sn_val.push_back(static_cast<std::int64_t>(m.vals.size()));
+    c0 = c1;
+  }
+  m.sn_col.push_back(static_cast<std::int32_t>(dim));
+  m.acc.assign(max_w, 0.0);
   m.inv_d.resize(static_cast<std::size_t>(dim));
   const Eigen::VectorXd& d = m.ldlt.vectorD();
   for (Eigen::Index i = 0; i < dim; ++i) {
@@ -115,22 +190,61 @@ void BlockLdlt::Solve(double* x) const {
   const Impl& m = *impl_;
   const std::size_t dim = m.perm.size();
   double* w = m.work.data();
+  double* acc = m.acc.data();
   const std::int32_t* perm = m.perm.data();
   for (std::size_t i = 0; i < dim; ++i) w[perm[i]] = x[i];
-  const std::int32_t* lp = m.lp.data();
-  const std::int32_t* li = m.li.data();
-  const double* lx = m.lx.data();
-  // L y = b (column oriented), y <- D^-1 y, L^T z = y (row oriented over columns of L).
-  for (std::size_t j = 0; j < dim; ++j) {
-    const double yj = w[j];
-    if (yj == 0) continue;
-    for (std::int32_t p = lp[j]; p < lp[j + 1]; ++p) w[li[p]] -= lx[p] * yj;
+  const std::size_t ns = m.sn_col.size() - 1;
+  // L y = b: per run, the small unit triangle, then each below row once: w_r -= B(r, :) y.
+  for (std::size_t s = 0; s < ns; ++s) {
+    const std::int32_t c0 = m.sn_col[s];
+    const auto wd = static_cast<std::size_t>(m.sn_col[s + 1] - c0);
+    const double* t = m.vals.data() + m.sn_val[s];
+    const double* b = t + wd * wd;
+    double* y = w + c0;
+    for (std::size_t k = 0; k < wd; ++k) {
+      const double yk = y[k];
+      for (std::size_t i = k + 1; i < wd; ++i) y[i] -= t[k * wd + i] * yk;
+    }
+    const std::int32_t* rows = m.rows.data() + m.sn_row[s];
+    const auto rc = static_cast<std::size_t>(m.sn_row[s + 1] - m.sn_row[s]);
+    switch (wd) {
+      case 3:
+        ForwardRows<3>(b, rows, rc, wd, y, w);
+        break;
+      case 6:
+        ForwardRows<6>(b, rows, rc, wd, y, w);
+        break;
+      default:
+        ForwardRows<0>(b, rows, rc, wd, y, w);
+        break;
+    }
   }
   for (std::size_t j = 0; j < dim; ++j) w[j] *= m.inv_d[j];
-  for (std::size_t j = dim; j-- > 0;) {
-    double s = w[j];
-    for (std::int32_t p = lp[j]; p < lp[j + 1]; ++p) s -= lx[p] * w[li[p]];
-    w[j] = s;
+  // L^T x = y: per run backwards, gather the below rows (acc = B^T x_R), then the triangle.
+  for (std::size_t s = ns; s-- > 0;) {
+    const std::int32_t c0 = m.sn_col[s];
+    const auto wd = static_cast<std::size_t>(m.sn_col[s + 1] - c0);
+    const double* t = m.vals.data() + m.sn_val[s];
+    const double* b = t + wd * wd;
+    double* y = w + c0;
+    const std::int32_t* rows = m.rows.data() + m.sn_row[s];
+    const auto rc = static_cast<std::size_t>(m.sn_row[s + 1] - m.sn_row[s]);
+    switch (wd) {
+      case 3:
+        BackwardRows<3>(b, rows, rc, wd, w, acc);
+        break;
+      case 6:
+        BackwardRows<6>(b, rows, rc, wd, w, acc);
+        break;
+      default:
+        BackwardRows<0>(b, rows, rc, wd, w, acc);
+        break;
+    }
+    for (std::size_t k = wd; k-- > 0;) {
+      double v = y[k] - acc[k];
+      for (std::size_t i = k + 1; i < wd; ++i) v -= t[k * wd + i] * y[i];
+      y[k] = v;
+    }
   }
   for (std::size_t i = 0; i < dim; ++i) x[i] = w[perm[i]];
 }

@@ -20,44 +20,6 @@ namespace {
 
 std::string Source(const std::string& rel) { return std::string(ARTHROSIM_SOURCE_DIR) + "/" + rel; }
 
-// Splits every alive tet of every soft body 1 -> 4 at its centroid, `levels` times.
-void RefineByCentroidSplits(State* state, int levels) {
-  for (int l = 0; l < levels; ++l) {
-    for (SoftBodyState& b : state->soft_bodies) {
-      const auto n0 = b.x.cols();
-      std::vector<mesh::Tet> tets;
-      std::vector<Vec3> x, xr;
-      for (std::size_t t = 0; t < b.tets.size(); ++t) {
-        if (!b.tet_alive[t]) continue;
-        const mesh::Tet& p = b.tets[t];
-        Vec3 c = Vec3::Zero(), cr = Vec3::Zero();
-        for (std::int32_t k : p) {
-          c += 0.25 * b.x.col(k);
-          cr += 0.25 * b.x_rest.col(k);
-        }
-        const auto q = static_cast<std::int32_t>(n0 + static_cast<Eigen::Index>(x.size()));
-        x.push_back(c);
-        xr.push_back(cr);
-        tets.push_back({q, p[1], p[2], p[3]});
-        tets.push_back({p[0], q, p[2], p[3]});
-        tets.push_back({p[0], p[1], q, p[3]});
-        tets.push_back({p[0], p[1], p[2], q});
-      }
-      const auto n = n0 + static_cast<Eigen::Index>(x.size());
-      b.x.conservativeResize(3, n);
-      b.x_rest.conservativeResize(3, n);
-      for (std::size_t i = 0; i < x.size(); ++i) {
-        b.x.col(n0 + static_cast<Eigen::Index>(i)) = x[i];
-        b.x_rest.col(n0 + static_cast<Eigen::Index>(i)) = xr[i];
-      }
-      b.v = Points::Zero(3, n);
-      b.dv_warm = Points::Zero(3, n);
-      b.tets = std::move(tets);
-      b.tet_alive.assign(b.tets.size(), 1);
-    }
-  }
-}
-
 void Report(benchmark::State& bs, const SoftStepStats& sum, int steps, int nodes, int tets) {
   bs.counters["cg_it"] = static_cast<double>(sum.cg_iterations) / steps;
   bs.counters["rot_ms"] = sum.rotations_ms / steps;

@@ -2,7 +2,9 @@
 // The cantilever-beam verification/benchmark scene shared by tests, the Google Benchmark
 // target and `arthrosim bench`: 100 x 10 x 10 mm, E = 10 MPa, nu = 0.3, rho = 1000 kg/m^3,
 // gravity 9.81 m/s^2 along -z, the x = 0 face fixed.
+#include <functional>
 #include <string>
+#include <vector>
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
@@ -35,7 +37,8 @@ struct BeamBenchOptions {
 
 struct BeamBenchResult {
   int nodes = 0, tets = 0, steps = 0;
-  double ms_per_step = 0;                                  ///< mean wall time of SoftSystem::Step
+  double ms_per_step = 0;         ///< mean CPU time of SoftSystem::Step (incl. refactorisations)
+  double median_ms_per_step = 0;  ///< median CPU time of SoftSystem::Step
   double rotations_ms = 0, assembly_ms = 0, solve_ms = 0;  ///< means per step
   double mean_cg_iterations = 0;
   int max_cg_iterations = 0;
@@ -47,5 +50,42 @@ struct BeamBenchResult {
 
 /// Loads the mesh, solves the static reference, runs `steps` dynamic steps from rest.
 BeamBenchResult RunBeamBenchmark(const BeamBenchOptions& options);
+
+/// Splits every alive tet of every soft body 1 -> 4 at its centroid, `levels` times (4^levels
+/// tets; a scaling load, not a quality refinement). Velocities and warm starts are zeroed.
+void RefineByCentroidSplits(State* state, int levels);
+
+/// The soft-tissue step benchmark on a scenario's soft bodies (all of them, one system).
+struct SoftBenchOptions {
+  int warmup_steps = 10;  ///< not measured (the scene starts to sag from rest)
+  int steps = 100;        ///< measured steps
+  int refine_levels = 0;  ///< RefineByCentroidSplits levels (1 = 4x tets, 2 = 16x)
+  /// A 0.5 N/mm spring (a grasper) drags the free node of the last soft body farthest from
+  /// every fixed node around a circle of this radius (mm) in the y-z plane; 0 = idle scene.
+  double drive_radius_mm = 3.0;
+  double drive_period_s = 1.0;
+  int refactor_iterations = -1;  ///< SoftSystem::set_refactor_iterations; -1 = its default
+};
+
+struct SoftBenchResult {
+  int nodes = 0, tets = 0, steps = 0;
+  double median_ms = 0;  ///< median CPU time of SoftSystem::Step
+  double mean_ms = 0;    ///< mean CPU time (refactorisation steps included)
+  double rotations_ms = 0, assembly_ms = 0, solve_ms = 0, update_ms = 0;  ///< stage medians
+  double after_step_ms = 0;  ///< median CPU time of the caller's after_step hook (threads, output)
+  double mean_cg_iterations = 0;
+  int max_cg_iterations = 0;
+  double final_cg_residual = 0;  ///< relative residual of the last step
+  double max_cg_residual = 0;
+  int refactorizations = 0;   ///< measured steps that factored the preconditioner
+  double mean_factor_ms = 0;  ///< mean CPU time of one factorisation
+};
+
+/// Runs the scenario's soft bodies (threads single-threaded unless set by the caller's
+/// SetThreadCount) for warmup + steps steps of model.options.dt_s. `after_step` (optional) runs
+/// after each soft step on the state, e.g. the threads and output of `arthrosim bench`; its time
+/// is reported apart. The Model's solver options apply.
+SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& options,
+                                 const std::function<void(State*)>& after_step = {});
 
 }  // namespace arthrosim::physics

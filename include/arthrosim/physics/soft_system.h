@@ -249,7 +249,7 @@ class SoftSystem {
   bool anchor_dirty_ = true;   // anchor positions changed: refactor
   bool refactored_ = false;
   double factor_ms_ = 0;
-  int refactor_iterations_ = 8;
+  int refactor_iterations_ = 12;
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
