@@ -249,4 +249,30 @@ SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& opt
   return r;
 }
 
+FemBenchReport RunFemBenchSuite(const Model& model, const std::string& beam_mesh_path,
+                                const std::function<void(State*)>& after_step) {
+  FemBenchReport r;
+  SoftBenchOptions idle;
+  idle.drive_radius_mm = 0;
+  r.idle = RunSoftBenchmark(model, idle, after_step);
+  r.driven = RunSoftBenchmark(model, SoftBenchOptions{}, after_step);
+  SoftBenchOptions fine;
+  fine.warmup_steps = 5;
+  fine.steps = 10;
+  fine.refine_levels = 1;
+  r.refined4 = RunSoftBenchmark(model, fine, after_step);
+  fine.refine_levels = 2;
+  r.refined16 = RunSoftBenchmark(model, fine, after_step);
+  if (!beam_mesh_path.empty()) {
+    BeamBenchOptions beam;
+    beam.mesh_path = beam_mesh_path;
+    const BeamBenchResult b = RunBeamBenchmark(beam);
+    r.beam_ms_per_step = b.median_ms_per_step;
+    r.beam_mean_ms_per_step = b.ms_per_step;
+    r.beam_mean_cg_iterations = b.mean_cg_iterations;
+    r.beam_settled_error_pct = b.beam_settled_error_pct;
+  }
+  return r;
+}
+
 }  // namespace arthrosim::physics

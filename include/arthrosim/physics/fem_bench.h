@@ -88,4 +88,21 @@ struct SoftBenchResult {
 SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& options,
                                  const std::function<void(State*)>& after_step = {});
 
+/// Everything `arthrosim bench SCENARIO` reports for the soft tissue (~5-10 s on one core).
+struct FemBenchReport {
+  SoftBenchResult idle;              ///< the scenario as is (hangs under gravity), 100 steps
+  SoftBenchResult driven;            ///< with the SoftBenchOptions default drive, 100 steps
+  SoftBenchResult refined4;          ///< driven, 4x tets (RefineByCentroidSplits 1), 10 steps
+  SoftBenchResult refined16;         ///< driven, 16x tets (RefineByCentroidSplits 2), 10 steps
+  double beam_ms_per_step = 0;       ///< median CPU ms per step, beam_2.5 (3 573 tets)
+  double beam_mean_ms_per_step = 0;  ///< mean (with its refactorisations)
+  double beam_mean_cg_iterations = 0;
+  double beam_settled_error_pct = 0;  ///< settled vs static tip deflection after 2 s
+};
+
+/// Runs the reports above; beam_mesh_path is e.g. <source>/tests/testdata/beam/beam_2.5.msh
+/// (empty = skip the beam). after_step as in RunSoftBenchmark (timed apart).
+FemBenchReport RunFemBenchSuite(const Model& model, const std::string& beam_mesh_path,
+                                const std::function<void(State*)>& after_step = {});
+
 }  // namespace arthrosim::physics
