@@ -196,6 +196,13 @@ int FirstTouch(const Sweep& sw, double reach, const Simplex& target, const Box& 
   return -1;
 }
 
+// Support function of a simplex: max over its points of n . x, mm.
+double Support(const Simplex& s, const Vec3& n) {
+  double h = n.dot(s.v[0]);
+  for (int i = 1; i < s.n; ++i) h = std::max(h, n.dot(s.v[i]));
+  return h;
+}
+
 // Conservative: false when no substep can bring the target within reach (cheap tests only).
 bool MayTouch(const Sweep& sw, double reach, const Simplex& target, const Box& target_box) {
   for (std::size_t s = 0; s < sw.sub.size(); ++s) {
@@ -281,9 +288,12 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
     c.target = PointContact::Target::kSoftBody;
     c.index = body;
     // Direction fixed where the point first came within reach (outside the core, as the sweep
-    // substep is below the alarm distance), plane carried to this step's tool surface.
+    // substep is below the alarm distance); the plane is this step's tangent plane of the tool
+    // with that normal (support of the core), so the point is pushed ahead of the whole part
+    // even where the core has passed it (a needle point through a triangle).
+    (void)cur;
     c.normal = SafeNormalized(touch.pb - touch.pa, fallback);
-    c.offset_mm = c.normal.dot(cur.pa) + r + P.contact_distance_mm;
+    c.offset_mm = Support(sw.sub.back(), c.normal) + r + P.contact_distance_mm;
     c.stiffness_n_per_mm = P.tool_tissue_stiffness_n_per_mm;
     c.tool_slot = slot;
     c.obstacle_id = -1;
@@ -384,7 +394,7 @@ void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
     }
     const Vec3 motion = sw.sub.back().At(touch.wa) - sw.sub.front().At(touch.wa);
     c.normal = SafeNormalized(touch.pb - touch.pa, SafeNormalized(motion, Vec3::UnitZ()));
-    c.offset_mm = c.normal.dot(cur.pa) + r + rt + P.contact_distance_mm;
+    c.offset_mm = Support(sw.sub.back(), c.normal) + r + rt + P.contact_distance_mm;
     c.stiffness_n_per_mm = P.tool_thread_stiffness_n_per_mm;
     c.tool_slot = slot;
     B->Add(c, Kind::kTool);
