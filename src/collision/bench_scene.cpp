@@ -197,8 +197,9 @@ CollisionBenchResult BenchmarkCollision(const Model& model, int steps) {
       th.x.col(i) = Vec3(x, mid.y(), z + r + 0.05);
     }
   }
-  // Tools: tips 0.5 mm inside the top surface, shafts along the line from their portal (else
-  // pointing down), moving across the thread along y at 100 mm/s in opposite phase.
+  // Tools: tips 0.5 mm inside the top surface, shafts coming from above, tilted 30 degrees
+  // toward their portal's side (a straight line from a portal could run through the cuff), moving
+  // across the thread along y at 100 mm/s in opposite phase.
   std::array<Quat, kToolSlots> orient;
   std::array<double, kToolSlots> xs{mid.x() - 0.25 * size.x(), mid.x() + 0.25 * size.x()};
   for (int slot = 0; slot < kToolSlots; ++slot) {
@@ -207,10 +208,11 @@ CollisionBenchResult BenchmarkCollision(const Model& model, int steps) {
     Vec3 dir = -Vec3::UnitZ();
     if (t.instrument >= 0) {
       const int p = model.FindPortal(model.instruments[t.instrument].portal);
-      const Vec3 aim(xs[slot], mid.y(), surface_z(xs[slot], mid.y(), hi.z()));
-      if (p >= 0 && (aim - model.portals[p].position_mm).norm() > 1.0) {
-        dir = (aim - model.portals[p].position_mm).normalized();
-      }
+      Vec3 side = p >= 0 ? Vec3(Vec3(xs[slot], mid.y(), 0) - model.portals[p].position_mm)
+                         : Vec3(Vec3::Zero());
+      side.z() = 0;
+      if (side.norm() > 1.0) dir = (-Vec3::UnitZ() + std::tan(units::kPi / 6) * side.normalized());
+      dir.normalize();
     }
     orient[slot] = Quat::FromTwoVectors(Vec3::UnitZ(), dir);
   }

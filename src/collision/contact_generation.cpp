@@ -65,7 +65,7 @@ struct Nearest {
 double BoxDist2(const Box& a, const Box& b) {
   double d2 = 0;
   for (int k = 0; k < 3; ++k) {
-    const double g = std::max({a.lo[k] - b.hi[k], b.lo[k] - a.hi[k], 0.0});
+    const double g = std::max(std::max(a.lo[k] - b.hi[k], b.lo[k] - a.hi[k]), 0.0);
     d2 += g * g;
   }
   return d2;
@@ -92,7 +92,9 @@ Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<st
     if (box_d2[i] < box_d2[first]) first = i;
   }
   auto test = [&](std::size_t i) {
-    const ClosestPair c = Closest(q, LocalTriangle(p, tris[cand[i]]));
+    const mesh::Tri& t = tris[cand[i]];
+    const ClosestPair c = q.n == 1 ? PointTriangle(q.v[0], p[t[0]], p[t[1]], p[t[2]])
+                                   : Closest(q, LocalTriangle(p, t));
     d2[i] = c.dist2;
     if (!best.found || c.dist2 < best.pair.dist2 ||
         (c.dist2 == best.pair.dist2 && cand[i] < best.tri)) {
@@ -460,7 +462,8 @@ void ThreadSurfaceContact(Builder* B, int thread, PointContact c, const Nearest&
 }
 
 // `query(i, box, out)` lists the triangles whose box overlaps `box` (ascending) for query slot i
-// (nodes 0..n-1, segments n..): a tree query, or a NearBoneCache lookup for a bone.
+// (segment i - n for i >= n, n = node count; slots below n are left for node queries): a tree
+// query, or a NearBoneCache lookup for a bone.
 template <class Query>
 void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, const Surface& s,
                    const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness,
@@ -480,8 +483,12 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
   const Eigen::Index nn = x.cols();
   thread_local std::vector<std::int32_t> tris;
   thread_local std::vector<Nearest> seg;
+  thread_local std::vector<std::vector<std::int32_t>> seg_tris;  // candidates per segment
+  thread_local std::vector<std::int32_t> node_seg;  // a segment with candidates around the node
   thread_local std::vector<std::uint8_t> pierced, blocked_edge, blocked_node, near_node;
   seg.assign(ne, Nearest{});
+  if (seg_tris.size() < ne) seg_tris.resize(ne);
+  node_seg.assign(static_cast<std::size_t>(nn), -1);
   pierced.assign(ne, 0);
   blocked_edge.assign(ne, 0);
   blocked_node.assign(static_cast<std::size_t>(nn), 0);
@@ -494,11 +501,14 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
     const Box sbox = SimplexBox(sg);
     const Box q = sbox.Inflated(reach);
     if (!q.Overlaps(bounds)) continue;
-    query(static_cast<std::size_t>(nn) + i, q, &tris);
-    if (tris.empty()) continue;
-    seg[i] = NearestOnSurface(sg, sbox, tris, bvh, pos, s.local_tris);
+    std::vector<std::int32_t>& st = seg_tris[i];
+    query(static_cast<std::size_t>(nn) + i, q, &st);
+    if (st.empty()) continue;
+    seg[i] = NearestOnSurface(sg, sbox, st, bvh, pos, s.local_tris);
     if (!seg[i].found) continue;
     near_node[a] = near_node[b] = 1;
+    if (node_seg[a] < 0) node_seg[a] = static_cast<std::int32_t>(i);
+    if (node_seg[b] < 0) node_seg[b] = static_cast<std::int32_t>(i);
     if (seg[i].pair.dist2 == 0) pierced[i] = 1;
   }
   // Next to a piercing the thread enters the tissue on purpose: no contacts there.
@@ -519,7 +529,13 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
     }
     const Simplex p = PointSimplex(x.col(v));
     const Box pbox = SimplexBox(p);
-    query(static_cast<std::size_t>(v), pbox.Inflated(reach), &tris);
+    // The node's query box lies inside its segment's: filtering that segment's candidates gives
+    // exactly the triangles a query would (same overlap test, ascending).
+    const Box q = pbox.Inflated(reach);
+    tris.clear();
+    for (std::int32_t t : seg_tris[node_seg[v]]) {
+      if (bvh.TriangleBox(t).Overlaps(q)) tris.push_back(t);
+    }
     const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris);
     if (!n.found || !in_contact(n)) continue;
     ThreadSurfaceContact(B, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,

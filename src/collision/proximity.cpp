@@ -52,8 +52,6 @@ ClosestPair PointSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
 }
 
 ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Simplex pa = PointSimplex(p);
-  const Simplex tri = TriangleSimplex(a, b, c);
   const Vec3 ab = b - a, ac = c - a;
   const double scale2 = std::max({ab.squaredNorm(), ac.squaredNorm(), (c - b).squaredNorm()});
   if (ab.cross(ac).squaredNorm() <= kTinyLength2 * std::max(scale2 * scale2, 1.0)) {
@@ -62,7 +60,8 @@ ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
     best.dist2 = -1;
     const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
     for (const auto& e : edges) {
-      const ClosestPair s = PointSegment(p, tri.v[e[0]], tri.v[e[1]]);
+      const Vec3* v[3] = {&a, &b, &c};
+      const ClosestPair s = PointSegment(p, *v[e[0]], *v[e[1]]);
       if (best.dist2 < 0 || s.dist2 < best.dist2) {
         best = s;
         best.wb = {0, 0, 0};
@@ -70,7 +69,7 @@ ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
         best.wb[e[1]] += s.wb[1];
       }
     }
-    return Finish(best, pa, tri);
+    return Finish(best, PointSimplex(p), TriangleSimplex(a, b, c));
   }
   // Voronoi regions of the vertices, edges and face; in a non-degenerate triangle the
   // denominators below are the squared edge lengths and the doubled area, all > 0.
@@ -105,7 +104,13 @@ ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
     r.wb = {1 - v - w, v, w};
   }
   r.wa = {1, 0, 0};
-  return Finish(r, pa, tri);
+  // As Finish(r, point, triangle), without building the simplices (same operations, same bits).
+  r.pa = p;
+  r.pb = r.wb[0] * a;
+  r.pb += r.wb[1] * b;
+  r.pb += r.wb[2] * c;
+  r.dist2 = (r.pa - r.pb).squaredNorm();
+  return r;
 }
 
 ClosestPair SegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {

@@ -30,9 +30,10 @@ struct CollisionBenchResult {
 
 /// Runs `steps` collision stages on `model` (any scenario; made for scenarios/bench_full.yaml):
 /// thread 0 is laid along x on the top surface of the tendon (the soft body named "*tendon*",
-/// else body 0), a grasper (slot 0) and a shaver (slot 1) (else instruments 0 and 1) aimed from
-/// their portals press 0.5 mm into that surface and cross the thread along y at 100 mm/s
-/// (dt = 20 ms), the soft bodies carry a 0.3 mm travelling wave. Deterministic workload.
+/// else body 0), a grasper (slot 0) and a shaver (slot 1) (else instruments 0 and 1), coming from
+/// above tilted 30 degrees toward their portals, press 0.5 mm into that surface and cross the
+/// thread along y at 100 mm/s (dt = 20 ms), the soft bodies carry a 0.3 mm travelling wave.
+/// Deterministic workload.
 CollisionBenchResult BenchmarkCollision(const Model& model, int steps);
 
 /// The figures as `key=value` lines for `arthrosim bench`, the first one
