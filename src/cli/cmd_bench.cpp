@@ -109,20 +109,34 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("cg_residual_final={:.3g}\n", s.last_residual);
 }
 
-void PrintBeam(const std::string& mesh_path) {
-  if (!std::filesystem::exists(mesh_path)) {
+// Soft tissue alone (CPU time): idle and driven by a grasper-like spring, refined 4x and 16x,
+// and the cantilever beam at equal accuracy (settled tip vs the static solution).
+void PrintSoftSuite(const Model& model, const std::string& beam_mesh) {
+  const bool have_beam = std::filesystem::exists(beam_mesh);
+  const physics::FemBenchReport r = physics::RunFemBenchSuite(model, have_beam ? beam_mesh : "");
+  auto line = [](const char* name, const physics::SoftBenchResult& s) {
+    fmt::print("  {:10} {:6} tets  median {:7.3f} ms  mean {:7.3f} ms  CG {:5.1f} it (max {})  "
+               "refactors {} x {:.1f} ms\n",
+               name, s.tets, s.median_ms, s.mean_ms, s.mean_cg_iterations, s.max_cg_iterations,
+               s.refactorizations, s.mean_factor_ms);
+  };
+  fmt::print("soft tissue alone (CPU time per step):\n");
+  line("idle", r.idle);
+  line("driven", r.driven);
+  line("driven 4x", r.refined4);
+  line("driven 16x", r.refined16);
+  fmt::print("soft_ms_median_idle={:.3f}\nsoft_ms_median_driven={:.3f}\nsoft_ms_mean_driven={:.3f}\n",
+             r.idle.median_ms, r.driven.median_ms, r.driven.mean_ms);
+  fmt::print("soft_ms_median_4x={:.3f}\nsoft_ms_median_16x={:.3f}\n", r.refined4.median_ms,
+             r.refined16.median_ms);
+  if (!have_beam) {
     fmt::print("beam: skipped (mesh {} not found; run from the source tree or pass --beam-mesh)\n",
-               mesh_path);
+               beam_mesh);
     return;
   }
-  physics::BeamBenchOptions o;
-  o.mesh_path = mesh_path;
-  const physics::BeamBenchResult r = physics::RunBeamBenchmark(o);
-  fmt::print("beam {}: {} nodes, {} tets, {} steps of {} s; static tip {:.5f} mm, settled {:.5f} mm; "
-             "CG {:.1f} iterations mean ({} max)\n",
-             mesh_path, r.nodes, r.tets, r.steps, o.dt_s, r.static_tip_mm, r.settled_tip_mm,
-             r.mean_cg_iterations, r.max_cg_iterations);
-  fmt::print("beam_ms_per_step={:.3f}\n", r.ms_per_step);
+  fmt::print("beam {} (3 573 tets): CG {:.1f} iterations mean, mean {:.3f} ms per step\n", beam_mesh,
+             r.beam_mean_cg_iterations, r.beam_mean_ms_per_step);
+  fmt::print("beam_ms_per_step={:.3f}\n", r.beam_ms_per_step);
   fmt::print("beam_settled_error_pct={:.4f}\n", r.beam_settled_error_pct);
 }
 
@@ -140,7 +154,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     SetThreadCount(1);
     const Model model = io::LoadScenario(a->scenario);
     PrintScenario(model, TimeScenario(model, *a), a->steps);
-    PrintBeam(a->beam_mesh);
+    PrintSoftSuite(model, a->beam_mesh);
     if (a->render) {
       setenv("LP_NUM_THREADS", "2", 0);
       fmt::print("{}", render::RenderBenchReport(model, render::MakeBenchmarkState(model), 100));

@@ -46,9 +46,10 @@ std::int64_t StepCount(const RunArgs& a, const Model& m, const input::InputSourc
   } else if (a.live) {
     return std::numeric_limits<std::int64_t>::max();  // until the device ends the session
   } else if (!a.trajectory.empty()) {
-    // Step until the source says it is finished (bounded by one hour of simulated time).
+    // Step k applies the input at t = (k + 1) dt: run while that time still has input, so the
+    // last step applies the last sample (bounded by one hour of simulated time).
     std::int64_t n = 0;
-    while (!source->Finished(static_cast<double>(n) * m.options.dt_s) && n < 180000) ++n;
+    while (!source->Finished(static_cast<double>(n + 1) * m.options.dt_s) && n < 180000) ++n;
     return n;
   }
   return static_cast<std::int64_t>(std::llround(duration / m.options.dt_s));
