@@ -60,7 +60,8 @@ void DrawOverlay(const Overlay& overlay, Font* font, Image* image) {
   const int bar_w = std::max(20, image->width / 5), bar_h = std::max(4, px / 2);
   int yb = image->height - margin - line * static_cast<int>(overlay.tools.size());
   for (const ToolOverlay& t : overlay.tools) {
-    const std::string label = "F" + std::to_string(t.slot + 1);
+    std::string label = "F";  // appended: GCC 12 -Wrestrict false positive on "lit" + string
+    label += std::to_string(t.slot + 1);
     font->Draw(label, margin, yb, px, kWhite, image);
     const int x0 = margin + font->TextWidth("F0 ", px);
     const int by = yb + (px - bar_h) / 2 + 1;

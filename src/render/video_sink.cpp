@@ -69,7 +69,9 @@ std::string FindProgram(const std::string& program) {
   std::string dir;
   while (std::getline(dirs, dir, ':')) {
     if (dir.empty()) dir = ".";
-    const std::string full = dir + "/" + program;
+    std::string full = dir;  // appended: GCC 12 -Wrestrict false positive on operator+
+    full += '/';
+    full += program;
     struct stat st {};
     if (::stat(full.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
         ::access(full.c_str(), X_OK) == 0) {

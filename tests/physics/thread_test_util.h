@@ -11,7 +11,7 @@ namespace arthrosim::physics::testing {
 /// A thread through the given polyline vertices, `per_leg` equal segments per leg.
 inline ThreadModel PolylineThread(const std::vector<Vec3>& corners, int per_leg) {
   ThreadModel m;
-  m.name = "t";
+  m.name.assign(1, 't');  // not = "t": GCC 12 -Wrestrict false positive
   std::vector<Vec3> pts;
   for (std::size_t c = 0; c + 1 < corners.size(); ++c)
     for (int k = 0; k < per_leg; ++k)
