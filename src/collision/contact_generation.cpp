@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <tuple>
 
 namespace arthrosim::collision {
@@ -83,9 +84,19 @@ Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<st
   Nearest best;
   const std::size_t n = cand.size();
   if (n == 0) return best;
-  thread_local std::vector<double> box_d2, d2;
-  box_d2.resize(n);
-  d2.assign(n, -1.0);
+  // Scratch on the stack for the usual handful of candidates.
+  constexpr std::size_t kSmall = 64;
+  double small_box[kSmall], small_d2[kSmall];
+  thread_local std::vector<double> big_box, big_d2;
+  double* box_d2 = small_box;
+  double* d2 = small_d2;
+  if (n > kSmall) {
+    big_box.resize(n);
+    big_d2.resize(n);
+    box_d2 = big_box.data();
+    d2 = big_d2.data();
+  }
+  std::fill(d2, d2 + n, -1.0);
   std::size_t first = 0;
   for (std::size_t i = 0; i < n; ++i) {
     box_d2[i] = BoxDist2(qbox, bvh.TriangleBox(cand[i]));
@@ -115,7 +126,8 @@ Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<st
   for (std::size_t i = 0; i < n; ++i) {
     if (d2[i] >= 0 && d2[i] <= tie) sum += FaceNormal(p, tris[cand[i]]);
   }
-  best.pseudo = SafeNormalized(sum, FaceNormal(p, tris[best.tri]));
+  const double len = sum.norm();
+  best.pseudo = len > kMinDirection ? Vec3(sum / len) : FaceNormal(p, tris[best.tri]);
   return best;
 }
 
@@ -696,8 +708,14 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
   for (std::size_t g = 0; g < state.bones.size(); ++g) {
     const mesh::TriMesh& m = state.bones[g].surface;
     CollisionWorld::BoneEntry& e = world->bones[g];
-    const bool same = e.built && e.surface.nodes.cols() == m.nodes.cols() &&
-                      e.surface.tris == m.tris && e.surface.nodes == m.nodes;
+    // Bitwise comparison in two block compares (vector<array>::operator== compares element by
+    // element): stricter than ==, so at worst a needless rebuild.
+    const bool same =
+        e.built && e.surface.nodes.cols() == m.nodes.cols() &&
+        e.surface.tris.size() == m.tris.size() &&
+        std::memcmp(e.surface.tris.data(), m.tris.data(), m.tris.size() * sizeof(mesh::Tri)) == 0 &&
+        std::memcmp(e.surface.nodes.data(), m.nodes.data(),
+                    static_cast<std::size_t>(m.nodes.size()) * sizeof(double)) == 0;
     if (same) continue;
     e.surface = m;
     e.indexed = MakeSurface(CanonicalTriangles(m.tris));
