@@ -41,14 +41,16 @@ double Mean(const std::vector<double>& v) {
 }
 
 struct Series {
-  std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output, cg_it;
+  std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output,
+      cg_it;
   double last_residual = 0;
 };
 
 Series TimeScenario(const Model& model, const BenchArgs& a) {
   input::SourceOptions options;
   options.dt_s = model.options.dt_s;
-  auto source = input::OpenInputSource(a.trajectory.empty() ? "none" : a.trajectory, model, options);
+  auto source =
+      input::OpenInputSource(a.trajectory.empty() ? "none" : a.trajectory, model, options);
   State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);
@@ -89,16 +91,19 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
     nodes += static_cast<std::size_t>(b.rest_mesh.nodes.cols());
     tets += b.rest_mesh.tets.size();
   }
-  for (const auto& t : model.threads) thread_nodes += static_cast<std::size_t>(t.initial.nodes.cols());
-  fmt::print("scenario {}: {} soft nodes (before joins), {} tets, {} threads ({} nodes), dt {} s, "
-             "{} timed steps, 1 thread\n",
-             model.name, nodes, tets, model.threads.size(), thread_nodes, model.options.dt_s, steps);
+  for (const auto& t : model.threads)
+    thread_nodes += static_cast<std::size_t>(t.initial.nodes.cols());
+  fmt::print(
+      "scenario {}: {} soft nodes (before joins), {} tets, {} threads ({} nodes), dt {} s, "
+      "{} timed steps, 1 thread\n",
+      model.name, nodes, tets, model.threads.size(), thread_nodes, model.options.dt_s, steps);
   fmt::print("  {:12} {:>10} {:>10}\n", "stage", "median ms", "mean ms");
   const std::pair<const char*, const std::vector<double>*> rows[] = {
       {"kinematics", &s.kinematics}, {"collision", &s.collision}, {"rotations", &s.rotations},
       {"assembly", &s.assembly},     {"solve", &s.solve},         {"thread", &s.thread},
       {"step total", &s.step},       {"output", &s.output}};
-  for (const auto& [name, v] : rows) fmt::print("  {:12} {:10.3f} {:10.3f}\n", name, Median(*v), Mean(*v));
+  for (const auto& [name, v] : rows)
+    fmt::print("  {:12} {:10.3f} {:10.3f}\n", name, Median(*v), Mean(*v));
   fmt::print("step_ms_median={:.3f}\n", Median(s.step));
   fmt::print("step_collision_ms_median={:.3f}\n", Median(s.collision));
   fmt::print("rotations_ms_median={:.3f}\n", Median(s.rotations));
@@ -116,18 +121,20 @@ void PrintSoftSuite(const Model& model, const std::string& beam_mesh) {
   const bool have_beam = std::filesystem::exists(beam_mesh);
   const physics::FemBenchReport r = physics::RunFemBenchSuite(model, have_beam ? beam_mesh : "");
   auto line = [](const char* name, const physics::SoftBenchResult& s) {
-    fmt::print("  {:10} {:6} tets  median {:7.3f} ms  mean {:7.3f} ms  CG {:5.1f} it (max {})  "
-               "refactors {} x {:.1f} ms\n",
-               name, s.tets, s.median_ms, s.mean_ms, s.mean_cg_iterations, s.max_cg_iterations,
-               s.refactorizations, s.mean_factor_ms);
+    fmt::print(
+        "  {:10} {:6} tets  median {:7.3f} ms  mean {:7.3f} ms  CG {:5.1f} it (max {})  "
+        "refactors {} x {:.1f} ms\n",
+        name, s.tets, s.median_ms, s.mean_ms, s.mean_cg_iterations, s.max_cg_iterations,
+        s.refactorizations, s.mean_factor_ms);
   };
   fmt::print("soft tissue alone (CPU time per step):\n");
   line("idle", r.idle);
   line("driven", r.driven);
   line("driven 4x", r.refined4);
   line("driven 16x", r.refined16);
-  fmt::print("soft_ms_median_idle={:.3f}\nsoft_ms_median_driven={:.3f}\nsoft_ms_mean_driven={:.3f}\n",
-             r.idle.median_ms, r.driven.median_ms, r.driven.mean_ms);
+  fmt::print(
+      "soft_ms_median_idle={:.3f}\nsoft_ms_median_driven={:.3f}\nsoft_ms_mean_driven={:.3f}\n",
+      r.idle.median_ms, r.driven.median_ms, r.driven.mean_ms);
   fmt::print("soft_ms_median_4x={:.3f}\nsoft_ms_median_16x={:.3f}\n", r.refined4.median_ms,
              r.refined16.median_ms);
   if (!have_beam) {
@@ -135,8 +142,8 @@ void PrintSoftSuite(const Model& model, const std::string& beam_mesh) {
                beam_mesh);
     return;
   }
-  fmt::print("beam {} (3 573 tets): CG {:.1f} iterations mean, mean {:.3f} ms per step\n", beam_mesh,
-             r.beam_mean_cg_iterations, r.beam_mean_ms_per_step);
+  fmt::print("beam {} (3 573 tets): CG {:.1f} iterations mean, mean {:.3f} ms per step\n",
+             beam_mesh, r.beam_mean_cg_iterations, r.beam_mean_ms_per_step);
   fmt::print("beam_ms_per_step={:.3f}\n", r.beam_ms_per_step);
   fmt::print("beam_settled_error_pct={:.4f}\n", r.beam_settled_error_pct);
 }
@@ -147,9 +154,12 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand("bench", "Time the simulation (and rendering) on this machine");
   auto a = std::make_shared<BenchArgs>();
   cmd->add_option("scenario", a->scenario, "Scenario YAML file")->required();
-  cmd->add_option("--steps", a->steps, "Timed steps")->check(CLI::Range(1, 100000))->capture_default_str();
+  cmd->add_option("--steps", a->steps, "Timed steps")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   cmd->add_option("--trajectory", a->trajectory, "Input during the timed steps (default: idle)");
-  cmd->add_option("--beam-mesh", a->beam_mesh, "Cantilever mesh for the beam figures")->capture_default_str();
+  cmd->add_option("--beam-mesh", a->beam_mesh, "Cantilever mesh for the beam figures")
+      ->capture_default_str();
   cmd->add_flag("--render", a->render, "Also measure rendering and encoding frame rates");
   cmd->callback([a, exit_code] {
     SetThreadCount(1);

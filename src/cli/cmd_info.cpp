@@ -22,14 +22,16 @@ std::string Bounds(const Points& p) {
 
 void PrintScenario(const std::string& path) {
   const Model m = io::LoadScenario(path);
-  fmt::print("scenario {} ({})\n  sha256 {}\n  dt {} s, duration {} s, seed {}, gravity [{}, {}, {}] mm/s^2\n",
-             m.name, path, m.scenario_sha256, m.options.dt_s, m.options.duration_s, m.options.seed,
-             m.options.gravity_mm_s2.x(), m.options.gravity_mm_s2.y(), m.options.gravity_mm_s2.z());
+  fmt::print(
+      "scenario {} ({})\n  sha256 {}\n  dt {} s, duration {} s, seed {}, gravity [{}, {}, {}] "
+      "mm/s^2\n",
+      m.name, path, m.scenario_sha256, m.options.dt_s, m.options.duration_s, m.options.seed,
+      m.options.gravity_mm_s2.x(), m.options.gravity_mm_s2.y(), m.options.gravity_mm_s2.z());
   for (const SoftBodyModel& b : m.soft_bodies) {
     fmt::print("  soft   {:24} {:6} nodes {:6} tets  E {} Pa  nu {}  rho {} kg/m^3  fixed {}  {}\n",
-               b.name, b.rest_mesh.nodes.cols(), b.rest_mesh.tets.size(), b.material.young_modulus_pa,
-               b.material.poisson_ratio, b.material.density_kg_m3, b.fixed_nodes.size(),
-               Bounds(b.rest_mesh.nodes));
+               b.name, b.rest_mesh.nodes.cols(), b.rest_mesh.tets.size(),
+               b.material.young_modulus_pa, b.material.poisson_ratio, b.material.density_kg_m3,
+               b.fixed_nodes.size(), Bounds(b.rest_mesh.nodes));
   }
   for (const BoneModel& b : m.bones) {
     fmt::print("  rigid  {:24} {:6} nodes {:6} tris  {}\n", b.name, b.surface.nodes.cols(),
@@ -40,7 +42,8 @@ void PrintScenario(const std::string& path) {
                t.diameter_mm, Bounds(t.initial.nodes));
   }
   for (const InstrumentModel& i : m.instruments) {
-    fmt::print("  instrument {:20} {:16} portal {}\n", i.name, InstrumentKindName(i.kind), i.portal);
+    fmt::print("  instrument {:20} {:16} portal {}\n", i.name, InstrumentKindName(i.kind),
+               i.portal);
   }
   fmt::print("  {} portals, {} landmarks, {} regions, {} joins\n", m.portals.size(),
              m.landmarks.size(), m.regions.size(), m.joins.size());
@@ -48,9 +51,10 @@ void PrintScenario(const std::string& path) {
 
 void PrintMesh(const std::string& path) {
   const mesh::MeshData d = mesh::ReadMesh(path);
-  fmt::print("mesh {} (format {})\n  {} nodes, {} tets, {} triangles, {} lines, {} groups\n  bounds {}\n",
-             path, d.format, d.volume.nodes.cols(), d.volume.tets.size(), d.surface.tris.size(),
-             d.lines.edges.size(), d.groups.size(), Bounds(d.volume.nodes));
+  fmt::print(
+      "mesh {} (format {})\n  {} nodes, {} tets, {} triangles, {} lines, {} groups\n  bounds {}\n",
+      path, d.format, d.volume.nodes.cols(), d.volume.tets.size(), d.surface.tris.size(),
+      d.lines.edges.size(), d.groups.size(), Bounds(d.volume.nodes));
 }
 
 }  // namespace

@@ -16,12 +16,14 @@ namespace {
 
 // The Model of a run: its stored scenario text, with meshes resolved next to the scenario path
 // stored in the file (or the one given with --scenario).
-Model RunModel(const io::RunReader& reader, const std::string& run, const std::string& override_path) {
+Model RunModel(const io::RunReader& reader, const std::string& run,
+               const std::string& override_path) {
   const io::RunInfo& info = reader.info();
   if (!override_path.empty()) {
     Model m = io::LoadScenario(override_path);
     if (m.scenario_sha256 != info.scenario_sha256) {
-      fmt::print(stderr, "warning: {} differs from the scenario stored in {}\n", override_path, run);
+      fmt::print(stderr, "warning: {} differs from the scenario stored in {}\n", override_path,
+                 run);
     }
     return m;
   }

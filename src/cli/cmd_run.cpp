@@ -3,11 +3,11 @@
 #include <fmt/core.h>
 
 #include <atomic>
-#include <limits>
-#include <optional>
 #include <cmath>
 #include <csignal>
+#include <limits>
 #include <memory>
+#include <optional>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
@@ -102,7 +102,8 @@ int Run(const RunArgs& a) {
   writer.Close();
   if (video) video->Finish();
   if (g_interrupted) {
-    fmt::print(stderr, "interrupted at step {}: {} holds {} frames\n", state.step, out, writer.frames());
+    fmt::print(stderr, "interrupted at step {}: {} holds {} frames\n", state.step, out,
+               writer.frames());
     return 130;
   }
   if (!a.quiet) {
@@ -116,13 +117,15 @@ int Run(const RunArgs& a) {
 
 void AddServeCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand(
-      "serve", "Run a scenario live from an OpenIGTLink device, paced to real time (docs/haptics.md)");
+      "serve",
+      "Run a scenario live from an OpenIGTLink device, paced to real time (docs/haptics.md)");
   auto a = std::make_shared<RunArgs>();
   auto bind = std::make_shared<std::string>("127.0.0.1");
   auto port = std::make_shared<int>(18944);
   cmd->add_option("scenario", a->scenario, "Scenario YAML file")->required();
   cmd->add_option("--bind", *bind, "Address to listen on (default loopback only)");
-  cmd->add_option("--port", *port, "TCP port (OpenIGTLink default 18944)")->check(CLI::Range(1, 65535));
+  cmd->add_option("--port", *port, "TCP port (OpenIGTLink default 18944)")
+      ->check(CLI::Range(1, 65535));
   cmd->add_option("--record", a->record, "Record the received stream as a session CSV");
   cmd->add_option("--out", a->out, "HDF5 output file (default: the scenario's output.file)");
   cmd->add_option("--duration", a->duration_s, "Stop after this many simulated seconds")
@@ -143,15 +146,16 @@ void AddRunCommand(CLI::App* app, int* exit_code) {
                   "Recorded session (.csv, .h5), synthetic script (.yaml), or igtl[:ADDR][:PORT] "
                   "for a live device; default: idle");
   cmd->add_option("--seed", a->seed, "Seed of the script noise model (default: the script's)");
-  cmd->add_option("--noise-scale", a->noise_scale,
-                  "Trainee noise of a script: 0 = the expert script as written, 1 = its noise block")
+  cmd->add_option(
+         "--noise-scale", a->noise_scale,
+         "Trainee noise of a script: 0 = the expert script as written, 1 = its noise block")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--record", a->record, "Record the applied input per step as a session CSV");
   cmd->add_option("--out", a->out, "HDF5 output file (default: the scenario's output.file)");
   auto* duration = cmd->add_option("--duration", a->duration_s, "Simulated seconds to run")
                        ->check(CLI::PositiveNumber);
-  auto* steps = cmd->add_option("--steps", a->steps, "Number of steps to run")
-                    ->check(CLI::NonNegativeNumber);
+  auto* steps =
+      cmd->add_option("--steps", a->steps, "Number of steps to run")->check(CLI::NonNegativeNumber);
   duration->excludes(steps);
   cmd->add_option("--threads", a->threads, "Worker threads (results do not depend on it)")
       ->check(CLI::Range(1, 256));

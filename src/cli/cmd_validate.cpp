@@ -7,7 +7,8 @@
 namespace arthrosim::cli {
 
 void AddValidateCommand(CLI::App* app, int* exit_code) {
-  auto* cmd = app->add_subcommand("validate", "Check a scenario file (and its meshes) without running it");
+  auto* cmd =
+      app->add_subcommand("validate", "Check a scenario file (and its meshes) without running it");
   auto path = std::make_shared<std::string>();
   cmd->add_option("scenario", *path, "Scenario YAML file")->required();
   cmd->callback([path, exit_code] {

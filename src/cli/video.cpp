@@ -43,7 +43,9 @@ void AddVideoOptions(CLI::App* cmd, VideoArgs* a, bool with_video) {
   if (with_video) cmd->add_option("--video", a->video, "Also render an MP4 (H.264) while running");
   cmd->add_option("--view", a->view, "scope | overview | both")->capture_default_str();
   cmd->add_option("--size", a->size, "Frame size WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--fps", a->fps, "Video frame rate")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--fps", a->fps, "Video frame rate")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--frames", a->frames_dir, "Write PNG frames to this folder instead of MP4");
   cmd->add_option("--from", a->from_s, "First time to render, s")->check(CLI::NonNegativeNumber);
   cmd->add_option("--to", a->to_s, "Last time to render, s")->check(CLI::NonNegativeNumber);
@@ -55,7 +57,8 @@ VideoOutput::VideoOutput(const Model& model, const VideoArgs& args) {
   setenv("LP_NUM_THREADS", "1", 0);
   renderer_ = std::make_unique<render::Renderer>();
   sink_ = render::MakeSink(options, args.video);
-  sequence_ = std::make_unique<render::SequenceRenderer>(model, options, renderer_.get(), sink_.get());
+  sequence_ =
+      std::make_unique<render::SequenceRenderer>(model, options, renderer_.get(), sink_.get());
 }
 
 VideoOutput::~VideoOutput() = default;

@@ -14,8 +14,8 @@ int FindByName(const std::vector<T>& items, const std::string& name) {
 }
 
 constexpr std::array<const char*, kInstrumentKindCount> kKindNames = {
-    "scissors", "cutter", "burr", "shaver", "electrocautery", "awl",
-    "retriever", "grasper", "scorpion_needle", "knot_pusher", "hook"};
+    "scissors", "cutter",          "burr",        "shaver", "electrocautery", "awl", "retriever",
+    "grasper",  "scorpion_needle", "knot_pusher", "hook"};
 
 }  // namespace
 

@@ -39,34 +39,66 @@ void VisitState(const State& s, V&& v) {
   v(s.step);
   v(s.time_s);
   for (const SoftBodyState& b : s.soft_bodies) {
-    v(b.x); v(b.v); v(b.x_rest); v(b.tets); v(b.tet_alive); v(b.dv_warm);
+    v(b.x);
+    v(b.v);
+    v(b.x_rest);
+    v(b.tets);
+    v(b.tet_alive);
+    v(b.dv_warm);
     v(b.x_factor);
   }
   for (const BoneState& b : s.bones) {
-    v(b.surface.nodes); v(b.surface.tris); v(b.removed_volume_mm3);
+    v(b.surface.nodes);
+    v(b.surface.tris);
+    v(b.removed_volume_mm3);
   }
-  for (const ThreadState& t : s.threads) { v(t.x); v(t.v); v(t.node_alive); }
+  for (const ThreadState& t : s.threads) {
+    v(t.x);
+    v(t.v);
+    v(t.node_alive);
+  }
   for (const ToolState& t : s.tools) {
-    v(t.instrument); v(t.pose.position_mm); v(t.pose.orientation.coeffs());
-    v(t.jaw); v(t.buttons); v(t.force_n);
+    v(t.instrument);
+    v(t.pose.position_mm);
+    v(t.pose.orientation.coeffs());
+    v(t.jaw);
+    v(t.buttons);
+    v(t.force_n);
   }
-  v(s.camera.pose.position_mm); v(s.camera.pose.orientation.coeffs());
-  v(s.camera.lens_roll_rad); v(s.camera.head_roll_rad);
+  v(s.camera.pose.position_mm);
+  v(s.camera.pose.orientation.coeffs());
+  v(s.camera.lens_roll_rad);
+  v(s.camera.head_roll_rad);
   for (const SpringConstraint& c : s.constraints) {
-    v(c.id); v(c.tag); v(c.stiffness_n_per_mm); v(c.rest_length_mm);
+    v(c.id);
+    v(c.tag);
+    v(c.stiffness_n_per_mm);
+    v(c.rest_length_mm);
     for (const ConstraintEnd* e : {&c.a, &c.b}) {
-      v(static_cast<std::uint8_t>(e->kind)); v(e->index); v(e->nodes); v(e->weights);
+      v(static_cast<std::uint8_t>(e->kind));
+      v(e->index);
+      v(e->nodes);
+      v(e->weights);
       v(e->offset_mm);
     }
   }
   v(s.next_constraint_id);
   v(s.rng_state);
   for (const Event& e : s.events) {
-    v(e.step); v(e.time_s); v(e.kind); v(e.tool); v(e.body); v(e.detail); v(e.position_mm);
+    v(e.step);
+    v(e.time_s);
+    v(e.kind);
+    v(e.tool);
+    v(e.body);
+    v(e.detail);
+    v(e.position_mm);
   }
   v(s.tool_contacts.size());
   for (const ToolContact& c : s.tool_contacts) {
-    v(c.tool_slot); v(static_cast<std::uint8_t>(c.body_kind)); v(c.body); v(c.position_mm);
+    v(c.tool_slot);
+    v(static_cast<std::uint8_t>(c.body_kind));
+    v(c.body);
+    v(c.position_mm);
   }
 }
 

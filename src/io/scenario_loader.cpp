@@ -118,7 +118,8 @@ class Section {
       Required(key);
     }
     const YAML::Node n = Get(key);
-    if (!n.IsScalar() || n.Scalar().empty()) Fail(ctx_, n, Field(key), "expected a non-empty string");
+    if (!n.IsScalar() || n.Scalar().empty())
+      Fail(ctx_, n, Field(key), "expected a non-empty string");
     return n.Scalar();
   }
 
@@ -195,7 +196,8 @@ void ReadTimeAndSolver(const Section& root, Model* m) {
 
 void ReadMaterials(const Section& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
-  if (!materials.IsMap()) Fail(root.ctx(), materials, "materials", "expected a mapping name -> material");
+  if (!materials.IsMap())
+    Fail(root.ctx(), materials, "materials", "expected a mapping name -> material");
   for (auto it = materials.begin(); it != materials.end(); ++it) {
     Material mat;
     mat.name = it->first.as<std::string>();
@@ -232,7 +234,8 @@ void ReadThreadBlock(const Section& body, ThreadModel* t) {
   const Vec3 end = s.Vector("end");
   if (!s.Has("nodes")) s.Required("nodes");
   const auto n = s.Integer("nodes", 0, 2);
-  if ((end - start).norm() <= 0) Fail(s.ctx(), s.Get("end"), s.Field("end"), "must differ from start");
+  if ((end - start).norm() <= 0)
+    Fail(s.ctx(), s.Get("end"), s.Field("end"), "must differ from start");
   t->initial.nodes.resize(3, n);
   for (std::int64_t i = 0; i < n; ++i) {
     t->initial.nodes.col(i) = start + (end - start) * (static_cast<double>(i) / double(n - 1));
@@ -255,7 +258,8 @@ void ReadThreadBlock(const Section& body, ThreadModel* t) {
     t->fixed_nodes.push_back(static_cast<std::int32_t>(v));
   }
   std::sort(t->fixed_nodes.begin(), t->fixed_nodes.end());
-  t->fixed_nodes.erase(std::unique(t->fixed_nodes.begin(), t->fixed_nodes.end()), t->fixed_nodes.end());
+  t->fixed_nodes.erase(std::unique(t->fixed_nodes.begin(), t->fixed_nodes.end()),
+                       t->fixed_nodes.end());
 }
 
 // A body's `fixed:` list, resolved once regions are known.
@@ -275,7 +279,8 @@ void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pendin
     Section s(root.ctx(), bodies[i], field,
               {"name", "kind", "mesh", "material", "fixed", "hardness", "thread"});
     const std::string name = s.String("name");
-    if (!names.insert(name).second) Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate body name '" + name + "'");
+    if (!names.insert(name).second)
+      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate body name '" + name + "'");
     const std::string kind = s.String("kind");
     if (kind == "soft") {
       SoftBodyModel b;
@@ -283,11 +288,13 @@ void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pendin
       b.mesh_file = s.String("mesh");
       b.rest_mesh = mesh::ReadTetMesh(MeshPath(s));
       mesh::OrientAndCheck(&b.rest_mesh, MeshPath(s));
-      if (b.rest_mesh.tets.empty()) Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "soft body mesh has no tetrahedra");
+      if (b.rest_mesh.tets.empty())
+        Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "soft body mesh has no tetrahedra");
       const std::string mat = s.String("material");
       auto found = std::find_if(m->materials.begin(), m->materials.end(),
                                 [&](const Material& x) { return x.name == mat; });
-      if (found == m->materials.end()) Fail(root.ctx(), s.Get("material"), s.Field("material"), "unknown material '" + mat + "'");
+      if (found == m->materials.end())
+        Fail(root.ctx(), s.Get("material"), s.Field("material"), "unknown material '" + mat + "'");
       b.material = *found;
       m->soft_bodies.push_back(std::move(b));
     } else if (kind == "rigid") {
@@ -295,7 +302,8 @@ void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pendin
       b.name = name;
       b.mesh_file = s.String("mesh");
       b.surface = mesh::ReadTriMesh(MeshPath(s));
-      if (b.surface.tris.empty()) Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
+      if (b.surface.tris.empty())
+        Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
       b.hardness = s.Positive("hardness", 1.0);
       m->bones.push_back(std::move(b));
     } else if (kind == "thread") {
@@ -304,12 +312,17 @@ void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pendin
       ReadThreadBlock(s, &t);
       m->threads.push_back(std::move(t));
     } else {
-      Fail(root.ctx(), s.Get("kind"), s.Field("kind"), "expected soft, rigid or thread, got '" + kind + "'");
+      Fail(root.ctx(), s.Get("kind"), s.Field("kind"),
+           "expected soft, rigid or thread, got '" + kind + "'");
     }
-    if (kind != "thread" && s.Has("thread")) Fail(root.ctx(), s.Get("thread"), s.Field("thread"), "only thread bodies take a thread block");
-    if (kind != "soft" && s.Has("material")) Fail(root.ctx(), s.Get("material"), s.Field("material"), "only soft bodies take a material");
+    if (kind != "thread" && s.Has("thread"))
+      Fail(root.ctx(), s.Get("thread"), s.Field("thread"),
+           "only thread bodies take a thread block");
+    if (kind != "soft" && s.Has("material"))
+      Fail(root.ctx(), s.Get("material"), s.Field("material"), "only soft bodies take a material");
     if (s.Has("fixed")) {
-      if (kind == "rigid") Fail(root.ctx(), s.Get("fixed"), s.Field("fixed"), "rigid bodies are fixed already");
+      if (kind == "rigid")
+        Fail(root.ctx(), s.Get("fixed"), s.Field("fixed"), "rigid bodies are fixed already");
       pending->push_back({s.Get("fixed"), s.Field("fixed"), name, nullptr});
     }
   }
@@ -334,21 +347,25 @@ void ReadRegionsAndLandmarks(const Section& root, Model* m) {
     Section s(root.ctx(), regions[i], Indexed("regions", i), {"name", "body", "box"});
     Region r;
     r.name = s.String("name");
-    if (m->FindRegion(r.name) >= 0) Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate region name");
+    if (m->FindRegion(r.name) >= 0)
+      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate region name");
     r.body = s.String("body");
     const Points* nodes = BodyNodes(*m, r.body);
     if (!nodes) Fail(root.ctx(), s.Get("body"), s.Field("body"), "unknown body '" + r.body + "'");
     Section box(root.ctx(), s.Required("box"), s.Field("box"), {"min", "max"});
     r.box_min_mm = box.Vector("min");
     r.box_max_mm = box.Vector("max");
-    if ((r.box_max_mm.array() < r.box_min_mm.array()).any()) Fail(root.ctx(), box.Get("max"), box.Field("max"), "max must be >= min in every axis");
+    if ((r.box_max_mm.array() < r.box_min_mm.array()).any())
+      Fail(root.ctx(), box.Get("max"), box.Field("max"), "max must be >= min in every axis");
     for (Eigen::Index n = 0; n < nodes->cols(); ++n) {
       const Vec3 p = nodes->col(n);
       if ((p.array() >= r.box_min_mm.array()).all() && (p.array() <= r.box_max_mm.array()).all()) {
         r.nodes.push_back(static_cast<std::int32_t>(n));
       }
     }
-    if (r.nodes.empty()) Fail(root.ctx(), s.Get("box"), s.Field("box"), "region '" + r.name + "' contains no node of body '" + r.body + "'");
+    if (r.nodes.empty())
+      Fail(root.ctx(), s.Get("box"), s.Field("box"),
+           "region '" + r.name + "' contains no node of body '" + r.body + "'");
     m->regions.push_back(std::move(r));
   }
   const YAML::Node landmarks = Sequence(root, "landmarks", false);
@@ -356,9 +373,11 @@ void ReadRegionsAndLandmarks(const Section& root, Model* m) {
     Section s(root.ctx(), landmarks[i], Indexed("landmarks", i), {"name", "body", "position"});
     Landmark l;
     l.name = s.String("name");
-    if (m->FindLandmark(l.name) >= 0) Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate landmark name");
+    if (m->FindLandmark(l.name) >= 0)
+      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate landmark name");
     l.body = s.String("body", "");
-    if (!l.body.empty() && !BodyNodes(*m, l.body)) Fail(root.ctx(), s.Get("body"), s.Field("body"), "unknown body '" + l.body + "'");
+    if (!l.body.empty() && !BodyNodes(*m, l.body))
+      Fail(root.ctx(), s.Get("body"), s.Field("body"), "unknown body '" + l.body + "'");
     l.position_mm = s.Vector("position");
     m->landmarks.push_back(l);
   }
@@ -375,7 +394,9 @@ void ResolveFixed(const Context& ctx, const Model& m, const std::vector<PendingF
       const int r = m.FindRegion(item.Scalar());
       if (r < 0) Fail(ctx, item, field, "unknown region '" + item.Scalar() + "'");
       if (m.regions[r].body != p.body) {
-        Fail(ctx, item, field, "region '" + item.Scalar() + "' belongs to body '" + m.regions[r].body + "', not '" + p.body + "'");
+        Fail(ctx, item, field,
+             "region '" + item.Scalar() + "' belongs to body '" + m.regions[r].body + "', not '" +
+                 p.body + "'");
       }
       p.nodes->insert(p.nodes->end(), m.regions[r].nodes.begin(), m.regions[r].nodes.end());
     }
@@ -391,39 +412,49 @@ void ReadJoinsAndPortals(const Section& root, Model* m) {
     Join j{s.String("a"), s.String("b"), s.Positive("tolerance", 1e-6)};
     for (const char* key : {"a", "b"}) {
       const std::string& body = key[0] == 'a' ? j.body_a : j.body_b;
-      if (m->FindSoftBody(body) < 0) Fail(root.ctx(), s.Get(key), s.Field(key), "expected the name of a soft body, got '" + body + "'");
+      if (m->FindSoftBody(body) < 0)
+        Fail(root.ctx(), s.Get(key), s.Field(key),
+             "expected the name of a soft body, got '" + body + "'");
     }
-    if (j.body_a == j.body_b) Fail(root.ctx(), s.Get("b"), s.Field("b"), "a body cannot be joined to itself");
+    if (j.body_a == j.body_b)
+      Fail(root.ctx(), s.Get("b"), s.Field("b"), "a body cannot be joined to itself");
     m->joins.push_back(j);
   }
   const YAML::Node portals = Sequence(root, "portals", false);
   for (std::size_t i = 0; i < portals.size(); ++i) {
     Section s(root.ctx(), portals[i], Indexed("portals", i), {"name", "position"});
     Portal p{s.String("name"), s.Vector("position")};
-    if (m->FindPortal(p.name) >= 0) Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate portal name");
+    if (m->FindPortal(p.name) >= 0)
+      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate portal name");
     m->portals.push_back(p);
   }
 }
 
 std::string CheckPortal(const Section& s, const Model& m, const std::string& fallback) {
   const std::string portal = s.String("portal", fallback);
-  if (m.FindPortal(portal) < 0) Fail(s.ctx(), s.Has("portal") ? s.Get("portal") : s.node(), s.Field("portal"), "unknown portal '" + portal + "'");
+  if (m.FindPortal(portal) < 0)
+    Fail(s.ctx(), s.Has("portal") ? s.Get("portal") : s.node(), s.Field("portal"),
+         "unknown portal '" + portal + "'");
   return portal;
 }
 
 void ReadInstruments(const Section& root, Model* m) {
   const YAML::Node list = Sequence(root, "instruments", false);
   for (std::size_t i = 0; i < list.size(); ++i) {
-    Section s(root.ctx(), list[i], Indexed("instruments", i),
-              {"name", "kind", "portal", "shaft_diameter", "shaft_length", "tip_length", "tip_radius"});
+    Section s(
+        root.ctx(), list[i], Indexed("instruments", i),
+        {"name", "kind", "portal", "shaft_diameter", "shaft_length", "tip_length", "tip_radius"});
     InstrumentModel in;
     in.name = s.String("name");
-    if (m->FindInstrument(in.name) >= 0) Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate instrument name");
+    if (m->FindInstrument(in.name) >= 0)
+      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate instrument name");
     const std::string kind = s.String("kind");
     const auto parsed = ParseInstrumentKind(kind);
     if (!parsed) {
       Fail(root.ctx(), s.Get("kind"), s.Field("kind"),
-           "unknown instrument kind '" + kind + "' (expected scissors, cutter, burr, shaver, electrocautery, awl, retriever, grasper, scorpion_needle, knot_pusher or hook)");
+           "unknown instrument kind '" + kind +
+               "' (expected scissors, cutter, burr, shaver, electrocautery, awl, retriever, "
+               "grasper, scorpion_needle, knot_pusher or hook)");
     }
     in.kind = *parsed;
     in.portal = CheckPortal(s, *m, "");
@@ -447,14 +478,16 @@ void ReadCamera(const Section& root, Model* m) {
   c.fov_deg = s.Positive("fov", 105);
   if (c.fov_deg >= 180) Fail(root.ctx(), s.Get("fov"), s.Field("fov"), "must be < 180 degrees");
   c.lens_angle_deg = s.NonNegative("lens_angle", 30);
-  if (c.lens_angle_deg >= 90) Fail(root.ctx(), s.Get("lens_angle"), s.Field("lens_angle"), "must be < 90 degrees");
+  if (c.lens_angle_deg >= 90)
+    Fail(root.ctx(), s.Get("lens_angle"), s.Field("lens_angle"), "must be < 90 degrees");
   c.diameter_mm = s.Positive("diameter", 4.0);
   c.near_mm = s.Positive("near", 1.0);
   c.far_mm = s.Positive("far", 100.0);
   if (c.far_mm <= c.near_mm) Fail(root.ctx(), s.Get("far"), s.Field("far"), "must be > near");
   const Vec3 eye = s.Vector("position", Vec3(0, 0, 0));
   const Vec3 target = s.Vector("look_at", eye + Vec3::UnitX());
-  if ((target - eye).norm() <= 0) Fail(root.ctx(), s.Get("look_at"), s.Field("look_at"), "must differ from position");
+  if ((target - eye).norm() <= 0)
+    Fail(root.ctx(), s.Get("look_at"), s.Field("look_at"), "must differ from position");
   c.initial_pose = Pose{eye, LookAtOrientation(eye, target)};
 }
 

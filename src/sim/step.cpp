@@ -16,9 +16,7 @@ double MsSince(Clock::time_point t0) {
 }
 
 // Events describe one step only.
-void BeginStep(State* state, Workspace* ws) {
-  state->events.clear();
-}
+void BeginStep(State* state, Workspace* ws) { state->events.clear(); }
 
 // Collision: contacts of tools, tissue, thread and bone at the start of the step, with the
 // tool sweep from last step's pose (no tunnelling).
@@ -70,8 +68,7 @@ void AccumulateToolForces(const Workspace& ws, State* state) {
 
 // Contact start/end events, by comparing this step's touching pairs with the last step's.
 void RecordContactEvents(const Model& model, const Workspace& ws, State* state) {
-  collision::UpdateContactEvents(model, *state, ws.contacts, &state->tool_contacts,
-                                 &state->events);
+  collision::UpdateContactEvents(model, *state, ws.contacts, &state->tool_contacts, &state->events);
 }
 
 // Clock: step index and time are derived from the index so they never drift.

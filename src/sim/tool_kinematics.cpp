@@ -20,18 +20,18 @@ void ApplyToolCommands(const Model& model, const InputFrame& input, State* state
     const ToolCommand& cmd = input.tools[slot];
     ToolState& tool = state->tools[slot];
     if (cmd.instrument < -1 || cmd.instrument >= count) {
-      throw InputError("", 0, "slot" + std::to_string(slot) + ".instrument",
-                       "instrument index " + std::to_string(cmd.instrument) + " is not in the scenario");
+      throw InputError(
+          "", 0, "slot" + std::to_string(slot) + ".instrument",
+          "instrument index " + std::to_string(cmd.instrument) + " is not in the scenario");
     }
     if (cmd.instrument != tool.instrument) {
       // Events carry the step and time of the state they belong to: the end of this step.
       const std::int64_t step = state->step + 1;
-      state->events.push_back(Event{step, static_cast<double>(step) * model.options.dt_s,
-                                    "tool_change",
-                                    InstrumentName(model, cmd.instrument),
-                                    "", "slot" + std::to_string(slot) + " from '" +
-                                            InstrumentName(model, tool.instrument) + "'",
-                                    cmd.pose.position_mm});
+      state->events.push_back(Event{
+          step, static_cast<double>(step) * model.options.dt_s, "tool_change",
+          InstrumentName(model, cmd.instrument), "",
+          "slot" + std::to_string(slot) + " from '" + InstrumentName(model, tool.instrument) + "'",
+          cmd.pose.position_mm});
       tool.instrument = cmd.instrument;
     }
     tool.pose = cmd.pose;

@@ -44,7 +44,8 @@ class CliTest : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() /
-           ("arthrosim_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("arthrosim_cli_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -70,7 +71,8 @@ TEST_F(CliTest, BadScenarioExitsWithTwoAndNamesFileLineField) {
   std::ofstream(P("bad.yaml")) << text;
   const Result r = Exec("validate " + P("bad.yaml"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find(P("bad.yaml") + ":8: field 'materials.soft.poisson_ratio'"), std::string::npos)
+  EXPECT_NE(r.output.find(P("bad.yaml") + ":8: field 'materials.soft.poisson_ratio'"),
+            std::string::npos)
       << r.output;
   // run refuses it the same way and writes no output file
   const Result run = Exec("run " + P("bad.yaml") + " --quiet --out " + P("x.h5"));
@@ -82,7 +84,8 @@ TEST_F(CliTest, UsageErrorsExitWithTwo) {
   EXPECT_EQ(Exec("").exit_code, 2);
   EXPECT_EQ(Exec("run").exit_code, 2);
   EXPECT_EQ(Exec("run " + kSmall + " --steps 3 --duration 1").exit_code, 2);
-  EXPECT_EQ(Exec("run " + kSmall + " --trajectory nowhere.csv --quiet --out " + P("y.h5")).exit_code, 2);
+  EXPECT_EQ(
+      Exec("run " + kSmall + " --trajectory nowhere.csv --quiet --out " + P("y.h5")).exit_code, 2);
   EXPECT_EQ(Exec("info " + P("missing.yaml")).exit_code, 2);
 }
 
@@ -91,13 +94,14 @@ TEST_F(CliTest, RunIsByteIdenticalForOneAndTwoThreads) {
   const Result b = Exec("run " + kSmall + " --steps 15 --threads 2 --quiet --out " + P("b.h5"));
   ASSERT_EQ(a.exit_code, 0) << a.output;
   ASSERT_EQ(b.exit_code, 0) << b.output;
-  const std::string cmp = Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") + " " + P("b.h5");
+  const std::string cmp =
+      Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") + " " + P("b.h5");
   EXPECT_EQ(std::system(cmp.c_str()), 0) << cmp;
   // and a different run does differ, so the comparison can fail
   const Result c = Exec("run " + kSmall + " --steps 16 --quiet --out " + P("c.h5"));
   ASSERT_EQ(c.exit_code, 0) << c.output;
-  const std::string cmp2 = Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") + " " +
-                           P("c.h5") + " --quiet";
+  const std::string cmp2 = Python() + " " + kSource + "/tests/io/compare_runs.py " + P("a.h5") +
+                           " " + P("c.h5") + " --quiet";
   EXPECT_NE(std::system(cmp2.c_str()), 0);
 }
 
@@ -146,8 +150,9 @@ TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {
     _exit(127);
   }
   // the client retries until the server listens
-  const std::string stream = client + " " + kSource + "/tests/testdata/scenes/small_session.csv --port " +
-                             port + " --forces " + P("forces.csv") + " > " + P("client.log") + " 2>&1";
+  const std::string stream = client + " " + kSource +
+                             "/tests/testdata/scenes/small_session.csv --port " + port +
+                             " --forces " + P("forces.csv") + " > " + P("client.log") + " 2>&1";
   int rc = 1;
   for (int attempt = 0; attempt < 40 && rc != 0; ++attempt) {
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
@@ -158,9 +163,11 @@ TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "serve status " << status;
 
-  const Result replay = Exec("run " + kSmall + " --trajectory " + rec + " --quiet --out " + P("replay.h5"));
+  const Result replay =
+      Exec("run " + kSmall + " --trajectory " + rec + " --quiet --out " + P("replay.h5"));
   ASSERT_EQ(replay.exit_code, 0) << replay.output;
-  const std::string cmp = Python() + " " + kSource + "/tests/io/compare_runs.py " + live + " " + P("replay.h5");
+  const std::string cmp =
+      Python() + " " + kSource + "/tests/io/compare_runs.py " + live + " " + P("replay.h5");
   EXPECT_EQ(std::system(cmp.c_str()), 0) << cmp;
 
   // the grasper pressed on the block: some force message is non-zero

@@ -16,9 +16,10 @@ namespace fs = std::filesystem;
 class ScenarioLoaderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("arthrosim_scenario_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ =
+        fs::temp_directory_path() /
+        ("arthrosim_scenario_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+         "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
     Write("block.vtk",
           "# vtk DataFile Version 3.0\nblock\nASCII\nDATASET UNSTRUCTURED_GRID\n"
@@ -159,7 +160,8 @@ TEST_F(ScenarioLoaderTest, UnknownReferences) {
   EXPECT_EQ(LoadError(Edit("material: muscle", "material: bone")).field(), "bodies[0].material");
   EXPECT_EQ(LoadError(Edit("fixed: [base]", "fixed: [top]")).field(), "bodies[0].fixed[0]");
   EXPECT_EQ(LoadError(Edit("kind: grasper", "kind: spoon")).field(), "instruments[0].kind");
-  EXPECT_EQ(LoadError(Edit("portal: lateral}", "portal: medial}")).field(), "instruments[0].portal");
+  EXPECT_EQ(LoadError(Edit("portal: lateral}", "portal: medial}")).field(),
+            "instruments[0].portal");
   EXPECT_EQ(LoadError(Edit("kind: rigid", "kind: liquid")).field(), "bodies[1].kind");
 }
 

@@ -12,7 +12,9 @@ class Fnv1a {
  public:
   void Add(const void* data, std::size_t bytes);
   template <class T>
-  void AddValue(const T& v) { Add(&v, sizeof(T)); }
+  void AddValue(const T& v) {
+    Add(&v, sizeof(T));
+  }
   std::uint64_t digest() const { return h_; }
 
  private:

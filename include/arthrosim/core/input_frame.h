@@ -11,10 +11,10 @@ namespace arthrosim {
 
 /// Command for one instrument slot (hand/portal).
 struct ToolCommand {
-  std::int32_t instrument = -1;   ///< index into Model::instruments; -1 = withdrawn
-  Pose pose;                      ///< desired tip pose, world, mm
-  double jaw = 0;                 ///< 0 open ... 1 closed
-  std::uint8_t buttons = 0;       ///< bit 0 = button 1, bit 1 = button 2 (latched per step)
+  std::int32_t instrument = -1;  ///< index into Model::instruments; -1 = withdrawn
+  Pose pose;                     ///< desired tip pose, world, mm
+  double jaw = 0;                ///< 0 open ... 1 closed
+  std::uint8_t buttons = 0;      ///< bit 0 = button 1, bit 1 = button 2 (latched per step)
 };
 
 /// Command for the arthroscope.

@@ -16,18 +16,18 @@ namespace arthrosim {
 /// Isotropic linear-elastic material with Rayleigh damping.
 struct Material {
   std::string name;
-  double young_modulus_pa = 0;     ///< E, Pa (> 0)
-  double poisson_ratio = 0;        ///< nu, in [0, 0.5)
-  double density_kg_m3 = 0;        ///< rho, kg/m^3 (> 0)
-  double rayleigh_mass = 0;        ///< alpha, 1/s: damping force = -alpha * M v
-  double rayleigh_stiffness = 0;   ///< beta, s: damping force = -beta * K v
+  double young_modulus_pa = 0;    ///< E, Pa (> 0)
+  double poisson_ratio = 0;       ///< nu, in [0, 0.5)
+  double density_kg_m3 = 0;       ///< rho, kg/m^3 (> 0)
+  double rayleigh_mass = 0;       ///< alpha, 1/s: damping force = -alpha * M v
+  double rayleigh_stiffness = 0;  ///< beta, s: damping force = -beta * K v
 };
 
 /// Volumetric deformable body (muscle, tendon, biceps).
 struct SoftBodyModel {
   std::string name;
-  std::string mesh_file;              ///< as written in the scenario (relative to it)
-  mesh::TetMesh rest_mesh;            ///< initial mesh, mm, positively oriented tets
+  std::string mesh_file;    ///< as written in the scenario (relative to it)
+  mesh::TetMesh rest_mesh;  ///< initial mesh, mm, positively oriented tets
   Material material;
   std::vector<std::int32_t> fixed_nodes;  ///< sorted, unique node indices held in place
 };
@@ -36,28 +36,37 @@ struct SoftBodyModel {
 struct BoneModel {
   std::string name;
   std::string mesh_file;
-  mesh::TriMesh surface;      ///< closed, outward oriented, mm
-  double hardness = 1.0;      ///< dimensionless removal-rate divisor for burr/awl (1 = cancellous)
+  mesh::TriMesh surface;  ///< closed, outward oriented, mm
+  double hardness = 1.0;  ///< dimensionless removal-rate divisor for burr/awl (1 = cancellous)
 };
 
 /// Suture thread: a chain of nodes (mass-spring), No. 2 FiberWire by default.
 struct ThreadModel {
   std::string name;
-  mesh::LineMesh initial;            ///< initial node positions and segments (a chain 0-1-...-n)
-  double diameter_mm = 0.55;         ///< USP 2
-  double density_kg_m3 = 1300;       ///< clinical.md section 4
-  double stretch_stiffness_n = 5000; ///< axial stiffness EA, N (clinical.md: EA ~ 5 kN)
-  double bend_stiffness_n_mm2 = 0;   ///< EI, N*mm^2 (0 disables bending)
-  double damping_per_s = 0;          ///< mass-proportional damping, 1/s
-  double max_speed_mm_s = 500;       ///< anti-jitter node speed cap (paper section II)
+  mesh::LineMesh initial;             ///< initial node positions and segments (a chain 0-1-...-n)
+  double diameter_mm = 0.55;          ///< USP 2
+  double density_kg_m3 = 1300;        ///< clinical.md section 4
+  double stretch_stiffness_n = 5000;  ///< axial stiffness EA, N (clinical.md: EA ~ 5 kN)
+  double bend_stiffness_n_mm2 = 0;    ///< EI, N*mm^2 (0 disables bending)
+  double damping_per_s = 0;           ///< mass-proportional damping, 1/s
+  double max_speed_mm_s = 500;        ///< anti-jitter node speed cap (paper section II)
   bool self_collision = true;
   std::vector<std::int32_t> fixed_nodes;  ///< e.g. node 0 held by an anchor in bone
 };
 
 /// The instruments of the paper's Table 1, plus the hook.
 enum class InstrumentKind : std::uint8_t {
-  kScissors, kCutter, kBurr, kShaver, kElectrocautery, kAwl,
-  kRetriever, kGrasper, kScorpionNeedle, kKnotPusher, kHook,
+  kScissors,
+  kCutter,
+  kBurr,
+  kShaver,
+  kElectrocautery,
+  kAwl,
+  kRetriever,
+  kGrasper,
+  kScorpionNeedle,
+  kKnotPusher,
+  kHook,
 };
 inline constexpr int kInstrumentKindCount = 11;
 
@@ -65,13 +74,13 @@ inline constexpr int kInstrumentKindCount = 11;
 /// the arthroscope): origin at the tip, +z points forward (handle -> tip), so the shaft runs
 /// from the tip back along -z to the handle; jaws open in the x-z plane.
 struct InstrumentModel {
-  std::string name;            ///< unique, used in trajectories and HDF5 (/tools/<name>)
+  std::string name;  ///< unique, used in trajectories and HDF5 (/tools/<name>)
   InstrumentKind kind{};
-  std::string portal;          ///< name of the portal it enters through
+  std::string portal;  ///< name of the portal it enters through
   double shaft_diameter_mm = 4.5;
   double shaft_length_mm = 150;
-  double tip_length_mm = 8;    ///< working part: blade/jaw length, burr/awl tip length
-  double tip_radius_mm = 2;    ///< burr sphere radius, awl radius, shaver window half-width
+  double tip_length_mm = 8;  ///< working part: blade/jaw length, burr/awl tip length
+  double tip_radius_mm = 2;  ///< burr sphere radius, awl radius, shaver window half-width
 };
 
 /// Skin entry point for instruments and scope.
@@ -83,19 +92,19 @@ struct Portal {
 /// Arthroscope optics (clinical.md section 5).
 struct CameraModel {
   std::string portal = "posterior";
-  double fov_deg = 105;           ///< image-circle field of view (in fluid)
-  double lens_angle_deg = 30;     ///< direction of view from the shaft axis
+  double fov_deg = 105;        ///< image-circle field of view (in fluid)
+  double lens_angle_deg = 30;  ///< direction of view from the shaft axis
   double diameter_mm = 4.0;
   double near_mm = 1.0;
   double far_mm = 100.0;
-  Pose initial_pose;              ///< scope tip pose; shaft axis +z forward, +y image up at zero
-                                  ///< rolls; the view direction is +z tilted lens_angle toward +y
+  Pose initial_pose;  ///< scope tip pose; shaft axis +z forward, +y image up at zero
+                      ///< rolls; the view direction is +z tilted lens_angle toward +y
 };
 
 /// A named point for plans, scripts and scoring (e.g. footprint centre, anchor site).
 struct Landmark {
   std::string name;
-  std::string body;               ///< body it lies on ("" = world)
+  std::string body;  ///< body it lies on ("" = world)
   Vec3 position_mm = Vec3::Zero();
 };
 
@@ -120,7 +129,7 @@ enum class Integrator : std::uint8_t { kImplicitEuler, kArkode };
 struct SolverOptions {
   Integrator integrator = Integrator::kImplicitEuler;
   int cg_max_iterations = 100;
-  double cg_tolerance = 1e-8;        ///< relative residual |r|/|b|
+  double cg_tolerance = 1e-8;  ///< relative residual |r|/|b|
 };
 
 /// Run options.
@@ -130,16 +139,16 @@ struct Options {
   Vec3 gravity_mm_s2{0.0, 0.0, -9810.0};
   std::uint64_t seed = 1;
   std::string output_file = "run.h5";
-  int output_every_steps = 1;        ///< write a frame every N steps
-  double flush_interval_s = 1.0;     ///< HDF5 flush at least this often in simulated time
+  int output_every_steps = 1;     ///< write a frame every N steps
+  double flush_interval_s = 1.0;  ///< HDF5 flush at least this often in simulated time
 };
 
 /// Everything a scenario defines. Immutable after loading.
 struct Model {
   std::string name;
-  std::string scenario_path;       ///< file it came from
-  std::string scenario_text;       ///< exact YAML text (stored in HDF5 /meta/scenario_yaml)
-  std::string scenario_sha256;     ///< hex digest of scenario_text
+  std::string scenario_path;    ///< file it came from
+  std::string scenario_text;    ///< exact YAML text (stored in HDF5 /meta/scenario_yaml)
+  std::string scenario_sha256;  ///< hex digest of scenario_text
   Options options;
   SolverOptions solver;
   std::vector<Material> materials;

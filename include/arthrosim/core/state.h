@@ -14,12 +14,12 @@ namespace arthrosim {
 
 /// Deformable body state. Node arrays may grow (tet splitting appends nodes).
 struct SoftBodyState {
-  Points x;                          ///< 3 x N positions, mm
-  Points v;                          ///< 3 x N velocities, mm/s
-  Points x_rest;                     ///< 3 x N rest positions, mm (shaving re-rests them)
-  std::vector<mesh::Tet> tets;       ///< element connectivity; initial tets first, splits appended
+  Points x;                     ///< 3 x N positions, mm
+  Points v;                     ///< 3 x N velocities, mm/s
+  Points x_rest;                ///< 3 x N rest positions, mm (shaving re-rests them)
+  std::vector<mesh::Tet> tets;  ///< element connectivity; initial tets first, splits appended
   std::vector<std::uint8_t> tet_alive;  ///< 1 = element present, 0 = removed (cut/shaved)
-  Points dv_warm;                    ///< 3 x N last velocity increment, CG warm start
+  Points dv_warm;                       ///< 3 x N last velocity increment, CG warm start
   /// 3 x N positions (mm) at which the soft-tissue CG preconditioner was last factored; empty =
   /// rest positions, missing columns = their rest positions. Set by the solver; kept here so a
   /// restored run rebuilds the same preconditioner and continues bit for bit.
@@ -28,14 +28,14 @@ struct SoftBodyState {
 
 /// Bone surface state (reshaped by burr and awl).
 struct BoneState {
-  mesh::TriMesh surface;             ///< current closed surface, mm
-  double removed_volume_mm3 = 0;     ///< initial enclosed volume minus current, mm^3
+  mesh::TriMesh surface;          ///< current closed surface, mm
+  double removed_volume_mm3 = 0;  ///< initial enclosed volume minus current, mm^3
 };
 
 /// Suture thread state.
 struct ThreadState {
-  Points x;                          ///< 3 x N positions, mm
-  Points v;                          ///< 3 x N velocities, mm/s
+  Points x;                              ///< 3 x N positions, mm
+  Points v;                              ///< 3 x N velocities, mm/s
   std::vector<std::uint8_t> node_alive;  ///< 0 once cut away by the cutter
 };
 
@@ -45,43 +45,43 @@ struct ThreadState {
 struct ConstraintEnd {
   enum class Kind : std::uint8_t { kWorld, kSoftBody, kThread, kBone, kTool };
   Kind kind = Kind::kWorld;
-  std::int32_t index = -1;                   ///< body / thread / bone / tool-slot index
+  std::int32_t index = -1;  ///< body / thread / bone / tool-slot index
   std::array<std::int32_t, 4> nodes{-1, -1, -1, -1};
   std::array<double, 4> weights{0, 0, 0, 0};
-  Vec3 offset_mm = Vec3::Zero();             ///< world point (kWorld, kBone) or tool-frame point (kTool)
+  Vec3 offset_mm = Vec3::Zero();  ///< world point (kWorld, kBone) or tool-frame point (kTool)
 };
 
 /// A runtime zero-or-positive-rest-length spring between two points: grasps, suture stitches,
 /// knots, anchors. Created and removed by instruments at any step.
 struct SpringConstraint {
-  std::int64_t id = 0;               ///< unique, increasing in creation order
-  std::string tag;                   ///< "grasp", "suture", "knot", "anchor", ...
+  std::int64_t id = 0;  ///< unique, increasing in creation order
+  std::string tag;      ///< "grasp", "suture", "knot", "anchor", ...
   ConstraintEnd a, b;
-  double stiffness_n_per_mm = 1.0;   ///< N/mm
+  double stiffness_n_per_mm = 1.0;  ///< N/mm
   double rest_length_mm = 0.0;
 };
 
 /// Per instrument-slot state (a working hand / portal).
 struct ToolState {
-  std::int32_t instrument = -1;      ///< index into Model::instruments, -1 = none inserted
-  Pose pose;                         ///< tip pose in world (+z forward; shaft along -z)
-  double jaw = 0;                    ///< 0 open ... 1 closed
-  std::uint8_t buttons = 0;          ///< bit 0 = button 1, bit 1 = button 2
-  Vec3 force_n = Vec3::Zero();       ///< contact force on the instrument this step, N
+  std::int32_t instrument = -1;  ///< index into Model::instruments, -1 = none inserted
+  Pose pose;                     ///< tip pose in world (+z forward; shaft along -z)
+  double jaw = 0;                ///< 0 open ... 1 closed
+  std::uint8_t buttons = 0;      ///< bit 0 = button 1, bit 1 = button 2
+  Vec3 force_n = Vec3::Zero();   ///< contact force on the instrument this step, N
 };
 
 /// Arthroscope state.
 struct CameraState {
-  Pose pose;                         ///< scope tip pose (+z forward along the shaft; see CameraModel)
-  double lens_roll_rad = 0;          ///< light-post rotation about the shaft (sweeps the 30 deg view)
-  double head_roll_rad = 0;          ///< camera-head rotation (image up)
+  Pose pose;                 ///< scope tip pose (+z forward along the shaft; see CameraModel)
+  double lens_roll_rad = 0;  ///< light-post rotation about the shaft (sweeps the 30 deg view)
+  double head_roll_rad = 0;  ///< camera-head rotation (image up)
 };
 
 /// A discrete happening, written to /events.
 struct Event {
   std::int64_t step = 0;
   double time_s = 0;
-  std::string kind;                  ///< contact_start, contact_end, cut, grasp, release, hole, ...
+  std::string kind;  ///< contact_start, contact_end, cut, grasp, release, hole, ...
   std::string tool;
   std::string body;
   std::string detail;
@@ -93,8 +93,8 @@ struct Event {
 struct ToolContact {
   std::int32_t tool_slot = -1;
   ConstraintEnd::Kind body_kind = ConstraintEnd::Kind::kSoftBody;  ///< kSoftBody, kThread, kBone
-  std::int32_t body = -1;            ///< body index in the Model
-  Vec3 position_mm = Vec3::Zero();   ///< contact point (force-weighted mean), mm
+  std::int32_t body = -1;                                          ///< body index in the Model
+  Vec3 position_mm = Vec3::Zero();  ///< contact point (force-weighted mean), mm
 };
 
 inline constexpr int kToolSlots = 2;
@@ -102,16 +102,16 @@ inline constexpr int kToolSlots = 2;
 struct State {
   std::int64_t step = 0;
   double time_s = 0;
-  std::vector<SoftBodyState> soft_bodies;   ///< parallel to Model::soft_bodies
-  std::vector<BoneState> bones;             ///< parallel to Model::bones
-  std::vector<ThreadState> threads;         ///< parallel to Model::threads
+  std::vector<SoftBodyState> soft_bodies;  ///< parallel to Model::soft_bodies
+  std::vector<BoneState> bones;            ///< parallel to Model::bones
+  std::vector<ThreadState> threads;        ///< parallel to Model::threads
   std::array<ToolState, kToolSlots> tools;
   CameraState camera;
   std::vector<SpringConstraint> constraints;  ///< sorted by id
   std::int64_t next_constraint_id = 1;
-  std::uint64_t rng_state = 0;              ///< splitmix64 state, seeded from Model::options.seed
-  std::vector<Event> events;                ///< events of the last step only
-  std::vector<ToolContact> tool_contacts;   ///< touching (tool, body) pairs, sorted (collision)
+  std::uint64_t rng_state = 0;             ///< splitmix64 state, seeded from Model::options.seed
+  std::vector<Event> events;               ///< events of the last step only
+  std::vector<ToolContact> tool_contacts;  ///< touching (tool, body) pairs, sorted (collision)
 };
 
 struct Model;

@@ -8,12 +8,12 @@
 
 namespace arthrosim::units {
 
-inline constexpr double kPascalToInternal = 1e-3;        // Pa -> mN/mm^2
-inline constexpr double kKgPerM3ToInternal = 1e-9;       // kg/m^3 -> kg/mm^3
-inline constexpr double kInternalForceToNewton = 1e-3;   // mN -> N
-inline constexpr double kNewtonToInternalForce = 1e3;    // N -> mN
-inline constexpr double kNewtonPerMmToInternal = 1e3;    // N/mm -> mN/mm
-inline constexpr double kStandardGravityMmS2 = 9810.0;   // 9.81 m/s^2 in mm/s^2
+inline constexpr double kPascalToInternal = 1e-3;       // Pa -> mN/mm^2
+inline constexpr double kKgPerM3ToInternal = 1e-9;      // kg/m^3 -> kg/mm^3
+inline constexpr double kInternalForceToNewton = 1e-3;  // mN -> N
+inline constexpr double kNewtonToInternalForce = 1e3;   // N -> mN
+inline constexpr double kNewtonPerMmToInternal = 1e3;   // N/mm -> mN/mm
+inline constexpr double kStandardGravityMmS2 = 9810.0;  // 9.81 m/s^2 in mm/s^2
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kDegToRad = kPi / 180.0;
 

@@ -28,7 +28,7 @@ struct Workspace {
   collision::CollisionParams collision_params;
   collision::CollisionWorld collision;  ///< surfaces and FCL trees, refit every step
   collision::CollisionOutput contacts;  ///< this step's contacts (collision -> solvers)
-  physics::SpringSet springs;          ///< runtime constraints, one per deformable end
+  physics::SpringSet springs;           ///< runtime constraints, one per deformable end
   StepTimings timings;
 };
 
