@@ -155,6 +155,56 @@ NoiseParams ParseNoise(const Parser& ps, const YAML::Node& n) {
   return p;
 }
 
+/// The `force` of a push (a number, with an optional `ramp`, or [[t, N], ...] keyframes) and
+/// the admittance parameters; returns the action's duration, s.
+double ParseForceProfile(const Parser& ps, const YAML::Node& body, const std::string& field,
+                         ForceProfile* out) {
+  const YAML::Node f = body["force"];
+  const std::string ff = field + ".force";
+  out->enabled = true;
+  double duration = 0;
+  if (f.IsSequence()) {
+    if (body["ramp"]) ps.Fail(body["ramp"], field + ".ramp", "ramp needs a constant force");
+    if (f.size() == 0) ps.Fail(f, ff, "expected a number or a list of [t, N] keyframes");
+    for (std::size_t k = 0; k < f.size(); ++k) {
+      const std::string kf = fmt::format("{}[{}]", ff, k);
+      if (!f[k].IsSequence() || f[k].size() != 2) ps.Fail(f[k], kf, "expected [t, N]");
+      const double t = ps.Num(f[k][0], kf);
+      const double n = ps.Num(f[k][1], kf);
+      if (t < 0) ps.Fail(f[k][0], kf, "keyframe time must be >= 0 s");
+      if (!out->t_s.empty() && !(t > out->t_s.back()))
+        ps.Fail(f[k][0], kf,
+                fmt::format("keyframe times must increase ({} s after {} s)", t, out->t_s.back()));
+      if (n < 0) ps.Fail(f[k][1], kf, fmt::format("force must be >= 0 N, found {}", n));
+      out->t_s.push_back(t);
+      out->force_n.push_back(n);
+    }
+    duration = ps.Positive(body, "duration", field, out->t_s.back(), true);
+    if (duration < out->t_s.back())
+      ps.Fail(body["duration"], field + ".duration",
+              fmt::format("shorter than the last keyframe ({} s)", out->t_s.back()));
+  } else {
+    const double n = ps.Num(f, ff);
+    if (n < 0) ps.Fail(f, ff, fmt::format("force must be >= 0 N, found {}", n));
+    const double ramp = ps.Positive(body, "ramp", field, 0, true);
+    duration = ps.Positive(body, "duration", field, std::max(0.5, ramp), true);
+    if (ramp > duration)
+      ps.Fail(body["ramp"], field + ".ramp",
+              fmt::format("longer than the duration ({} s)", duration));
+    if (ramp > 0) {
+      out->t_s = {0.0, ramp};
+      out->force_n = {0.0, n};
+    } else {
+      out->t_s = {0.0};
+      out->force_n = {n};
+    }
+  }
+  out->gain_mm_per_s_n = ps.Positive(body, "gain", field, out->gain_mm_per_s_n, false);
+  out->max_speed_mm_s = ps.Positive(body, "max_speed", field, out->max_speed_mm_s, false);
+  out->max_depth_mm = ps.Positive(body, "max_depth", field, out->max_depth_mm, false);
+  return duration;
+}
+
 /// Start time of an action: the cursor, or `at` if given (must not be earlier).
 double StartTime(const Parser& ps, const YAML::Node& body, const std::string& field, double cursor,
                  bool noisy) {
@@ -325,10 +375,17 @@ void BuildHand(const Parser& ps, const YAML::Node& seq, int slot, const NoiseCtx
         const double u = NoiseUniform(noise.seed, slot, static_cast<int>(i), kOvershoot);
         a.overshoot_mm = noise.p.overshoot * noise.scale * (0.5 + u) * (target - cur.position_mm);
       }
-    } else if (op == "push") {
-      ps.CheckKeys(body, field, {"depth", "duration", "easing", "at"});
+    } else if (op == "push" && body.IsMap() && body["force"]) {
+      if (body["depth"]) ps.Fail(body["depth"], field + ".depth", "give either depth or force");
+      ps.CheckKeys(body, field,
+                   {"force", "ramp", "gain", "max_speed", "max_depth", "duration", "at"});
       need_instrument();
-      if (!body["depth"]) ps.Fail(body, field + ".depth", "required");
+      a.op = HandOp::kPush;
+      duration = ParseForceProfile(ps, body, field, &a.force);
+    } else if (op == "push") {
+      ps.CheckKeys(body, field, {"depth", "force", "duration", "easing", "at"});
+      need_instrument();
+      if (!body["depth"]) ps.Fail(body, field + ".depth", "required (or force)");
       a.op = HandOp::kPush;
       a.easing = ps.Ease(body, field, Easing::kMinimumJerk);
       duration = ps.Positive(body, "duration", field, 0.5, true);

@@ -112,7 +112,23 @@ Vec3 LookPointAt(const Timeline& tl, const LookTarget& lt, double t) {
   return lt.slot < 0 ? lt.point_mm : EvaluateHand(tl, lt.slot, t).state.position_mm;
 }
 
+/// Moves that absorb a force push's excursion (blend it out over their duration).
+bool AbsorbsPush(const HandAction& a) {
+  return a.op == HandOp::kPick || a.op == HandOp::kMove || a.op == HandOp::kWithdraw ||
+         (a.op == HandOp::kPush && !a.force.enabled);
+}
+
 }  // namespace
+
+double ProfileForceAt(const ForceProfile& p, double u) {
+  if (p.t_s.empty()) return 0;
+  if (u <= p.t_s.front()) return p.force_n.front();
+  if (u >= p.t_s.back()) return p.force_n.back();
+  const auto it = std::upper_bound(p.t_s.begin(), p.t_s.end(), u);
+  const std::size_t k = static_cast<std::size_t>(it - p.t_s.begin());
+  const double w = (u - p.t_s[k - 1]) / (p.t_s[k] - p.t_s[k - 1]);
+  return Lerp(p.force_n[k - 1], p.force_n[k], w);
+}
 
 Vec3 HandTipAt(const Timeline& tl, int slot, double t) {
   return EvaluateHand(tl, slot, t).state.position_mm;
@@ -137,13 +153,59 @@ bool ScriptSource::Finished(double t_s) const { return t_s > timeline_->end_time
 double ScriptSource::end_time_s() const { return timeline_->end_time_s; }
 const std::string& ScriptSource::name() const { return timeline_->name; }
 
+void ScriptSource::Feedback(const FeedbackFrame& feedback) { feedback_ = feedback; }
+
+// The excursion of a force push along the tool axis: integrated while the push runs, then held
+// through non-moving actions and blended out (by its easing) over the next move, depth push or
+// withdraw, so the script's written positions hold again afterwards.
+Vec3 ScriptSource::PushOffset(int slot, double t) {
+  const std::vector<HandAction>& v = timeline_->hands[slot];
+  PushState& ps = push_[slot];
+  const int i = ActionAt(v, t);
+  // Carry of the previous force push at time t (zero once a later move has absorbed it).
+  Vec3 carry = Vec3::Zero();
+  if (ps.action >= 0 && i >= ps.action) {
+    const HandAction& p = v[ps.action];
+    carry = ps.depth_mm * (p.start.orientation * Vec3::UnitZ());
+    int j = ps.action + 1;
+    while (j < static_cast<int>(v.size()) && !AbsorbsPush(v[j])) ++j;
+    if (i > j) {
+      carry = Vec3::Zero();
+    } else if (i == j) {
+      const HandAction& m = v[j];
+      const double u = m.t1 > m.t0 ? std::clamp((t - m.t0) / (m.t1 - m.t0), 0.0, 1.0) : 1.0;
+      carry *= 1.0 - Ease(m.easing, u);
+    }
+  }
+  if (i < 0 || !v[i].force.enabled || t >= v[i].t1) return carry;
+
+  const HandAction& a = v[i];
+  const Vec3 axis = a.start.orientation * Vec3::UnitZ();
+  if (ps.action != i) {  // a new push starts where the previous excursion left the tool
+    ps.depth_mm = std::clamp(carry.dot(axis), 0.0, a.force.max_depth_mm);
+    ps.t_prev_s = a.t0;
+    ps.action = i;
+  }
+  if (t > ps.t_prev_s) {
+    // Admittance: depth rate = gain * (target - pressing force). The tool feels the tissue's
+    // reaction, so the force it presses with is -F . axis.
+    const double pressing = -feedback_.force_n[slot].dot(axis);
+    const double error = ProfileForceAt(a.force, t - a.t0) - pressing;
+    const double rate = std::clamp(a.force.gain_mm_per_s_n * error, -a.force.max_speed_mm_s,
+                                   a.force.max_speed_mm_s);
+    ps.depth_mm = std::clamp(ps.depth_mm + rate * (t - ps.t_prev_s), 0.0, a.force.max_depth_mm);
+    ps.t_prev_s = t;
+  }
+  return ps.depth_mm * axis;
+}
+
 void ScriptSource::Frame(std::int64_t /*step*/, double t, InputFrame* out) {
   const Timeline& tl = *timeline_;
   for (int s = 0; s < kToolSlots; ++s) {
     const HandSample h = EvaluateHand(tl, s, t);
     ToolCommand& tc = out->tools[s];
     tc.instrument = h.state.instrument;
-    tc.pose.position_mm = h.state.position_mm;
+    tc.pose.position_mm = h.state.position_mm + PushOffset(s, t);
     if (h.state.instrument >= 0) tc.pose.position_mm += TremorAt(tl.tremor[s], t);
     tc.pose.orientation = h.state.orientation;
     tc.jaw = h.state.jaw;

@@ -34,6 +34,20 @@ enum class HandOp : std::uint8_t {
   kWithdraw
 };
 
+/// A force-controlled push (push with `force:`): target pressing force over the action and
+/// the admittance law's parameters (docs/trajectory-format.md, "Force-profile push").
+struct ForceProfile {
+  bool enabled = false;
+  std::vector<double> t_s;      ///< keyframe times from the action start, s, increasing
+  std::vector<double> force_n;  ///< target pressing force at each keyframe, N, >= 0
+  double gain_mm_per_s_n = 5;   ///< depth rate per newton of force error, mm/(s N)
+  double max_speed_mm_s = 10;   ///< |depth rate| limit, mm/s
+  double max_depth_mm = 10;     ///< travel limit past the push's start, mm
+};
+
+/// Target force at time u (s) from the action start: linear between keyframes, held outside.
+double ProfileForceAt(const ForceProfile& p, double u);
+
 struct HandAction {
   HandOp op = HandOp::kWait;
   double t0 = 0, t1 = 0;  ///< absolute start/end, s
@@ -43,6 +57,7 @@ struct HandAction {
   double roll_rad = 0;               ///< twist about the axis for aim_portal
   std::uint8_t press_bits = 0;       ///< kPress: buttons down during [t0, t1)
   Vec3 overshoot_mm = Vec3::Zero();  ///< noise: extra excursion past the target
+  ForceProfile force;                ///< kPush with a force profile (start == end then)
   int line = 0;
 };
 

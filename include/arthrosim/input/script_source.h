@@ -2,7 +2,10 @@
 // Synthetic scripts (trajectories/*.yaml, docs/trajectory-format.md): keyframed actions per hand
 // and for the arthroscope, resolved against a Model's portals, instruments and landmarks. A
 // seeded noise model (tremor, overshoot, hesitation) turns an expert script into trainee
-// variants. Frames are a pure function of the step time and the seed.
+// variants. Frames are a pure function of the step time and the seed, except during and after a
+// force-profile push: that push advances the tool with an admittance law driven by the force fed
+// back through Feedback, so frames then also depend on the (deterministic) feedback sequence.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -45,7 +48,11 @@ class ScriptSource : public InputSource {
   static std::unique_ptr<ScriptSource> Open(const std::string& path, const Model& model,
                                             const ScriptOptions& options);
 
+  /// Frame at t_s (s). Force pushes integrate their controller once per new t_s (a repeated
+  /// t_s returns the same frame); calls must come in increasing t_s during a force push.
   void Frame(std::int64_t step, double t_s, InputFrame* out) override;
+  /// Stores the force on each tool after the step, N (read by the next Frame's force pushes).
+  void Feedback(const FeedbackFrame& feedback) override;
   /// True for t_s past the end of the last action.
   bool Finished(double t_s) const override;
 
@@ -55,7 +62,17 @@ class ScriptSource : public InputSource {
   const std::string& name() const;
 
  private:
+  /// Controller state of a slot's most recent force push.
+  struct PushState {
+    int action = -1;      ///< index in the slot's actions; -1 = none yet
+    double depth_mm = 0;  ///< advance along the axis past the push's nominal start, mm
+    double t_prev_s = 0;  ///< time of the last integration, s
+  };
+  Vec3 PushOffset(int slot, double t);
+
   std::unique_ptr<Timeline> timeline_;
+  FeedbackFrame feedback_;
+  std::array<PushState, kToolSlots> push_{};
 };
 
 }  // namespace arthrosim::input
