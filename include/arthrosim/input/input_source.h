@@ -1,8 +1,10 @@
 #pragma once
 // One interface for every input: recorded sessions, synthetic scripts, live devices. The
 // deterministic core calls Frame once per step and Feedback after it; it never knows which
-// source it has. File and script sources are pure functions of the step time (so a run can be
-// restored mid-way); only the live server depends on what arrives over the network.
+// source it has. File sources and scripts without force pushes are pure functions of the step
+// time (so a run can be restored mid-way); a script's force push also depends on the forces fed
+// back (deterministic, since they come from the core); only the live server depends on what
+// arrives over the network.
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -27,7 +29,8 @@ class InputSource {
   /// Fills *out with the command for the step at simulated time t_s (s). t_s should be
   /// step * dt; buttons pressed at any time in (t_s - dt, t_s] are reported as pressed.
   virtual void Frame(std::int64_t step, double t_s, InputFrame* out) = 0;
-  /// Force on each slot after the step, N (sent to a haptic device; ignored by file sources).
+  /// Force on each slot after the step, N, world (sent to a haptic device, used by a script's
+  /// force push; ignored by file sources). Call after every Step, before the next Frame.
   virtual void Feedback(const FeedbackFrame& feedback) { (void)feedback; }
   /// True once the source has nothing more to say at time t_s (s); the run may stop.
   virtual bool Finished(double t_s) const = 0;
