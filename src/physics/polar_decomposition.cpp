@@ -27,14 +27,22 @@ Mat3 PolarRotation(const Mat3& f) {
   if (f.determinant() <= 1e-3 * scale * scale * scale) return SvdRotation(f);
   Mat3 x = f;
   for (int it = 0; it < 30; ++it) {
-    const Mat3 inv_t = x.inverse().transpose();
+    // X^-T = cofactor(X) / det(X), written out (the 3x3 inverse without Eigen's generic path).
+    Mat3 cof;
+    cof.col(0) = x.col(1).cross(x.col(2));
+    cof.col(1) = x.col(2).cross(x.col(0));
+    cof.col(2) = x.col(0).cross(x.col(1));
+    const double inv_det = 1.0 / x.col(0).dot(cof.col(0));
+    const double inv_norm2 = cof.squaredNorm() * (inv_det * inv_det);  // |X^-1|_F^2
     // Frobenius scaling (Higham) for the first steps; plain Newton near convergence.
     double gamma = 1.0;
-    if (it < 6) gamma = std::sqrt(std::sqrt(inv_t.squaredNorm() / x.squaredNorm()));
-    const Mat3 next = 0.5 * (gamma * x + inv_t / gamma);
+    if (it < 6) gamma = std::sqrt(std::sqrt(inv_norm2 / x.squaredNorm()));
+    const Mat3 next = (0.5 * gamma) * x + (0.5 * inv_det / gamma) * cof;
     const double change = (next - x).squaredNorm();
     x = next;
-    if (change <= 1e-30 * 3.0) break;
+    // Newton converges quadratically: a step of size d leaves an error of about |X^-1| d^2 / 2;
+    // stop once that is below 1e-16 (round-off level).
+    if (0.25 * inv_norm2 * change * change <= 1e-32) break;
   }
   return x;
 }
