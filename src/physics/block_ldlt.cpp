@@ -27,6 +27,21 @@ struct BlockLdlt::Impl {
 
 namespace {
 
+// Dot product of length n in four interleaved partial sums: a single running sum waits on the
+// add latency each term (wide supernodes); the order is fixed, so the bits are too.
+inline double Dot(const double* a, const double* b, std::size_t n) {
+  double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    s0 += a[k] * b[k];
+    s1 += a[k + 1] * b[k + 1];
+    s2 += a[k + 2] * b[k + 2];
+    s3 += a[k + 3] * b[k + 3];
+  }
+  for (; k < n; ++k) s0 += a[k] * b[k];
+  return (s0 + s1) + (s2 + s3);
+}
+
 // Below-run rows of one supernode, forward: w[rows[r]] -= B(r, :) y. W > 0: fixed width (the
 // compiler keeps y in registers); W = 0: runtime width wd. Same summation order either way.
 template <std::size_t W>
@@ -35,9 +50,7 @@ void ForwardRows(const double* b, const std::int32_t* rows, std::size_t rc, std:
   const std::size_t n = W ? W : wd;
   for (std::size_t r = 0; r < rc; ++r) {
     const double* br = b + r * n;
-    double sum = 0;
-    for (std::size_t k = 0; k < n; ++k) sum += br[k] * y[k];
-    w[rows[r]] -= sum;
+    w[rows[r]] -= Dot(br, y, n);
   }
 }
 
@@ -241,9 +254,7 @@ void BlockLdlt::Solve(double* x) const {
         break;
     }
     for (std::size_t k = wd; k-- > 0;) {
-      double v = y[k] - acc[k];
-      for (std::size_t i = k + 1; i < wd; ++i) v -= t[k * wd + i] * y[i];
-      y[k] = v;
+      y[k] = (y[k] - acc[k]) - Dot(t + k * wd + k + 1, y + k + 1, wd - k - 1);
     }
   }
   for (std::size_t i = 0; i < dim; ++i) x[i] = w[perm[i]];
