@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <stdexcept>
 
 #include "arthrosim/mesh/surface.h"
 #include "instrument_shapes.h"
 #include "mesh_builder.h"
+#include "surface_cache.h"
 
 namespace arthrosim::render {
 namespace {
@@ -71,12 +73,21 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
       throw std::invalid_argument("soft body '" + model.soft_bodies[i].name +
                                   "': tet_alive size differs from tets");
     }
-    // the current boundary of the alive tets, so cut and shaved faces are surface too
-    std::vector<mesh::Tri> tris;
-    for (const mesh::BoundaryFace& f : mesh::ExtractBoundary(s.tets, s.tet_alive)) {
-      tris.push_back(f.nodes);
+    // the current boundary of the alive tets, so cut and shaved faces are surface too; the
+    // topology is memoised (it changes only when tets are cut), positions come from this frame
+    const std::shared_ptr<const SoftTopology> topo = CachedSoftTopology(s.tets, s.tet_alive);
+    if (topo->min_node < 0 || topo->max_node >= s.x.cols()) {
+      const std::int32_t bad = topo->min_node < 0 ? topo->min_node : topo->max_node;
+      throw std::invalid_argument("soft body '" + model.soft_bodies[i].name +
+                                  "': triangle references node " + std::to_string(bad) + " of " +
+                                  std::to_string(s.x.cols()));
     }
-    SceneMesh mesh = TriangleMesh(s.x, tris, "soft body '" + model.soft_bodies[i].name + "'");
+    SceneMesh mesh;
+    mesh.vertices.resize(topo->nodes.size());
+    for (std::size_t v = 0; v < topo->nodes.size(); ++v) {
+      mesh.vertices[v] = MakeVertex(s.x.col(topo->nodes[v]));
+    }
+    mesh.indices = topo->indices;
     mesh.name = model.soft_bodies[i].name;
     mesh.layer = MeshLayer::kSoftTissue;
     mesh.material = TissueMaterial(mesh.name, false);
@@ -85,38 +96,47 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
   }
 }
 
+// Vertices (normals, grain in uv.x, burr roughness) and triangles of a bone surface.
+SceneMesh BoneGeometry(const mesh::TriMesh& now, const mesh::TriMesh& initial,
+                       const std::string& what) {
+  SceneMesh mesh = TriangleMesh(now.nodes, now.tris, what);
+  ComputeVertexNormals(&mesh);
+  // subtle grain of the bone surface: a smooth, deterministic function of position
+  for (Vertex& v : mesh.vertices) {
+    const double g =
+        std::sin(1.3 * v.pos[0] + 0.7 * v.pos[2]) * std::sin(1.1 * v.pos[1] - 0.9 * v.pos[0]) +
+        0.5 * std::sin(2.9 * v.pos[2] + 2.3 * v.pos[1]);
+    v.uv[0] = static_cast<float>(0.95 + 0.035 * g);
+  }
+  // burred areas: how far a vertex moved from its initial place (same topology only)
+  if (now.nodes.cols() == initial.nodes.cols()) {
+    std::vector<std::int32_t> remap(now.nodes.cols(), -1);
+    std::int32_t next = 0;
+    for (const mesh::Tri& t : now.tris) {
+      for (std::int32_t n : t) {
+        if (remap[n] < 0) remap[n] = next++;
+      }
+    }
+    for (Eigen::Index n = 0; n < now.nodes.cols(); ++n) {
+      if (remap[n] < 0) continue;
+      const double depth = (now.nodes.col(n) - initial.nodes.col(n)).norm();
+      mesh.vertices[remap[n]].rough = static_cast<float>(std::min(1.0, depth / kFullRoughDepthMm));
+    }
+  }
+  return mesh;
+}
+
 void AppendBones(const Model& model, const State& state, Scene* scene) {
   for (std::size_t i = 0; i < model.bones.size(); ++i) {
     const mesh::TriMesh& now = state.bones[i].surface;
     const mesh::TriMesh& initial = model.bones[i].surface;
-    SceneMesh mesh = TriangleMesh(now.nodes, now.tris, "bone '" + model.bones[i].name + "'");
+    // geometry memoised: a bone changes only when burred or drilled
+    SceneMesh mesh = *CachedBoneMesh(now, initial.nodes, [&] {
+      return BoneGeometry(now, initial, "bone '" + model.bones[i].name + "'");
+    });
     mesh.name = model.bones[i].name;
     mesh.layer = MeshLayer::kBone;
     mesh.material = TissueMaterial(mesh.name, true);
-    ComputeVertexNormals(&mesh);
-    // subtle grain of the bone surface: a smooth, deterministic function of position
-    for (Vertex& v : mesh.vertices) {
-      const double g =
-          std::sin(1.3 * v.pos[0] + 0.7 * v.pos[2]) * std::sin(1.1 * v.pos[1] - 0.9 * v.pos[0]) +
-          0.5 * std::sin(2.9 * v.pos[2] + 2.3 * v.pos[1]);
-      v.uv[0] = static_cast<float>(0.95 + 0.035 * g);
-    }
-    // burred areas: how far a vertex moved from its initial place (same topology only)
-    if (now.nodes.cols() == initial.nodes.cols()) {
-      std::vector<std::int32_t> remap(now.nodes.cols(), -1);
-      std::int32_t next = 0;
-      for (const mesh::Tri& t : now.tris) {
-        for (std::int32_t n : t) {
-          if (remap[n] < 0) remap[n] = next++;
-        }
-      }
-      for (Eigen::Index n = 0; n < now.nodes.cols(); ++n) {
-        if (remap[n] < 0) continue;
-        const double depth = (now.nodes.col(n) - initial.nodes.col(n)).norm();
-        mesh.vertices[remap[n]].rough =
-            static_cast<float>(std::min(1.0, depth / kFullRoughDepthMm));
-      }
-    }
     scene->meshes.push_back(std::move(mesh));
   }
 }

@@ -163,6 +163,66 @@ TEST(BuildSceneTest, BurredBoneVerticesAreRough) {
   EXPECT_EQ(rough, 2);
 }
 
+// BuildScene memoises soft-body topology and bone meshes across calls; every frame must still
+// equal what the State alone gives, whatever was built before.
+bool SameMeshes(const Scene& a, const Scene& b) {
+  if (a.meshes.size() != b.meshes.size()) return false;
+  for (std::size_t i = 0; i < a.meshes.size(); ++i) {
+    const SceneMesh &x = a.meshes[i], &y = b.meshes[i];
+    if (x.name != y.name || x.indices != y.indices || x.vertices.size() != y.vertices.size()) {
+      return false;
+    }
+    for (std::size_t v = 0; v < x.vertices.size(); ++v) {
+      const Vertex &p = x.vertices[v], &q = y.vertices[v];
+      for (int k = 0; k < 3; ++k) {
+        if (p.pos[k] != q.pos[k] || p.normal[k] != q.normal[k]) return false;
+      }
+      if (p.uv[0] != q.uv[0] || p.uv[1] != q.uv[1] || p.rough != q.rough) return false;
+    }
+  }
+  return true;
+}
+
+TEST(BuildSceneTest, MemoisedSurfacesFollowTheState) {
+  Model model;
+  const State intact = MakeTestScene(&model);
+  State cut = intact;
+  cut.soft_bodies[0].tet_alive[4] = 0;
+  State moved = intact;
+  moved.soft_bodies[0].x.col(0) += Vec3(0.5, -0.25, 1.0);
+  State burred = intact;
+  burred.bones[0].surface.nodes.col(0) += Vec3(0, 0, -0.25);
+
+  const Scene first_intact = BuildScene(model, intact);
+  const Scene first_cut = BuildScene(model, cut);
+  const Scene first_moved = BuildScene(model, moved);
+  const Scene first_burred = BuildScene(model, burred);
+  EXPECT_FALSE(SameMeshes(first_intact, first_cut));
+  EXPECT_FALSE(SameMeshes(first_intact, first_moved));
+  EXPECT_FALSE(SameMeshes(first_intact, first_burred));
+  // interleaved repeats return exactly the first results
+  for (int round = 0; round < 2; ++round) {
+    EXPECT_TRUE(SameMeshes(BuildScene(model, cut), first_cut));
+    EXPECT_TRUE(SameMeshes(BuildScene(model, intact), first_intact));
+    EXPECT_TRUE(SameMeshes(BuildScene(model, burred), first_burred));
+    EXPECT_TRUE(SameMeshes(BuildScene(model, moved), first_moved));
+  }
+  // a moved node changes positions and normals of the cached topology
+  const SceneMesh* a = Find(first_intact, "tendon", MeshLayer::kSoftTissue);
+  const SceneMesh* b = Find(first_moved, "tendon", MeshLayer::kSoftTissue);
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(a->indices, b->indices);
+}
+
+TEST(BuildSceneTest, SoftBodyNodeOutOfRangeIsRejected) {
+  Model model;
+  State state = MakeTestScene(&model);
+  state.soft_bodies[0].tets[0][0] = static_cast<std::int32_t>(state.soft_bodies[0].x.cols());
+  EXPECT_THROW(BuildScene(model, state), std::invalid_argument);
+  state.soft_bodies[0].tets[0][0] = -3;
+  EXPECT_THROW(BuildScene(model, state), std::invalid_argument);
+}
+
 TEST(BuildSceneTest, JawOpensInTheXZPlane) {
   Model model;
   State state = MakeTestScene(&model);

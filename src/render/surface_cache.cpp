@@ -1,0 +1,124 @@
+#include "surface_cache.h"
+
+#include <algorithm>
+#include <cstring>
+#include <deque>
+#include <mutex>
+#include <utility>
+
+#include "arthrosim/mesh/surface.h"
+
+namespace arthrosim::render {
+namespace {
+
+// Enough for every body of a scenario plus a few recent cut states; older entries are dropped
+// (a miss only costs a recomputation).
+constexpr std::size_t kCapacity = 32;
+
+template <class T>
+bool SameBytes(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+bool SamePoints(const Points& a, const Points& b) {
+  // equal bit patterns give bit-identical derived meshes
+  return a.cols() == b.cols() && a.rows() == b.rows() &&
+         (a.size() == 0 || std::memcmp(a.data(), b.data(),
+                                       static_cast<std::size_t>(a.size()) * sizeof(double)) == 0);
+}
+
+struct SoftEntry {
+  std::vector<mesh::Tet> tets;
+  std::vector<std::uint8_t> alive;
+  std::shared_ptr<const SoftTopology> topo;
+};
+
+struct BoneEntry {
+  detail::BoneKey key;
+  std::shared_ptr<const SceneMesh> mesh;
+};
+
+std::mutex g_mutex;
+std::deque<SoftEntry> g_soft;  // most recently used first
+std::deque<BoneEntry> g_bone;
+
+template <class Entry>
+void PushFront(std::deque<Entry>* list, Entry e) {
+  list->push_front(std::move(e));
+  if (list->size() > kCapacity) list->pop_back();
+}
+
+SoftTopology BuildTopology(const std::vector<mesh::Tet>& tets,
+                           const std::vector<std::uint8_t>& alive) {
+  SoftTopology topo;
+  std::int32_t max_node = -1;
+  for (const mesh::Tet& t : tets) {
+    for (std::int32_t n : t) max_node = std::max(max_node, n);
+  }
+  // dense remap over the referenced node range, first-use order (as BuildScene always did)
+  std::vector<std::int32_t> remap(static_cast<std::size_t>(max_node + 1), -1);
+  const std::vector<mesh::BoundaryFace> faces = mesh::ExtractBoundary(tets, alive);
+  topo.indices.reserve(3 * faces.size());
+  for (const mesh::BoundaryFace& f : faces) {
+    for (std::int32_t n : f.nodes) {
+      topo.min_node = std::min(topo.min_node, n);
+      topo.max_node = std::max(topo.max_node, n);
+      if (n < 0) return topo;  // invalid: BuildScene reports it
+      if (remap[n] < 0) {
+        remap[n] = static_cast<std::int32_t>(topo.nodes.size());
+        topo.nodes.push_back(n);
+      }
+      topo.indices.push_back(static_cast<std::uint32_t>(remap[n]));
+    }
+  }
+  return topo;
+}
+
+}  // namespace
+
+std::shared_ptr<const SoftTopology> CachedSoftTopology(const std::vector<mesh::Tet>& tets,
+                                                       const std::vector<std::uint8_t>& alive) {
+  {
+    const std::lock_guard<std::mutex> lock(g_mutex);
+    for (auto it = g_soft.begin(); it != g_soft.end(); ++it) {
+      if (SameBytes(it->tets, tets) && SameBytes(it->alive, alive)) {
+        SoftEntry e = std::move(*it);
+        g_soft.erase(it);
+        auto topo = e.topo;
+        g_soft.push_front(std::move(e));
+        return topo;
+      }
+    }
+  }
+  // computed outside the lock; two threads may both compute the same entry (same result)
+  auto topo = std::make_shared<const SoftTopology>(BuildTopology(tets, alive));
+  const std::lock_guard<std::mutex> lock(g_mutex);
+  PushFront(&g_soft, SoftEntry{tets, alive, topo});
+  return topo;
+}
+
+namespace detail {
+
+std::shared_ptr<const SceneMesh> FindBone(const mesh::TriMesh& now, const Points& initial) {
+  const std::lock_guard<std::mutex> lock(g_mutex);
+  for (auto it = g_bone.begin(); it != g_bone.end(); ++it) {
+    if (SameBytes(it->key.tris, now.tris) && SamePoints(it->key.nodes, now.nodes) &&
+        SamePoints(it->key.initial, initial)) {
+      BoneEntry e = std::move(*it);
+      g_bone.erase(it);
+      auto mesh = e.mesh;
+      g_bone.push_front(std::move(e));
+      return mesh;
+    }
+  }
+  return nullptr;
+}
+
+void StoreBone(BoneKey key, std::shared_ptr<const SceneMesh> mesh) {
+  const std::lock_guard<std::mutex> lock(g_mutex);
+  PushFront(&g_bone, BoneEntry{std::move(key), std::move(mesh)});
+}
+
+}  // namespace detail
+}  // namespace arthrosim::render
