@@ -108,8 +108,11 @@ Vec3 TremorAt(const Tremor& tr, double t) {
   return d;
 }
 
-Vec3 LookPointAt(const Timeline& tl, const LookTarget& lt, double t) {
-  return lt.slot < 0 ? lt.point_mm : EvaluateHand(tl, lt.slot, t).state.position_mm;
+/// The look point; a followed hand's tip includes its force-push excursion (not its tremor).
+Vec3 LookPointAt(const Timeline& tl, const LookTarget& lt, double t,
+                 const std::array<Vec3, kToolSlots>& push_offset) {
+  return lt.slot < 0 ? lt.point_mm
+                     : Vec3(EvaluateHand(tl, lt.slot, t).state.position_mm + push_offset[lt.slot]);
 }
 
 /// Moves that absorb a force push's excursion (blend it out over their duration).
@@ -201,11 +204,13 @@ Vec3 ScriptSource::PushOffset(int slot, double t) {
 
 void ScriptSource::Frame(std::int64_t /*step*/, double t, InputFrame* out) {
   const Timeline& tl = *timeline_;
+  std::array<Vec3, kToolSlots> offset;
   for (int s = 0; s < kToolSlots; ++s) {
     const HandSample h = EvaluateHand(tl, s, t);
     ToolCommand& tc = out->tools[s];
     tc.instrument = h.state.instrument;
-    tc.pose.position_mm = h.state.position_mm + PushOffset(s, t);
+    offset[s] = PushOffset(s, t);
+    tc.pose.position_mm = h.state.position_mm + offset[s];
     if (h.state.instrument >= 0) tc.pose.position_mm += TremorAt(tl.tremor[s], t);
     tc.pose.orientation = h.state.orientation;
     tc.jaw = h.state.jaw;
@@ -223,7 +228,8 @@ void ScriptSource::Frame(std::int64_t /*step*/, double t, InputFrame* out) {
   const double u = a.blend_s > 0 ? std::min(1.0, (t - a.t0) / a.blend_s) : 1.0;
   const double e = Ease(a.easing, u);
   const Vec3 eye = Lerp(a.start.position_mm, a.end.position_mm, e);
-  const Vec3 look = Lerp(LookPointAt(tl, a.start.look, t), LookPointAt(tl, a.end.look, t), e);
+  const Vec3 look =
+      Lerp(LookPointAt(tl, a.start.look, t, offset), LookPointAt(tl, a.end.look, t, offset), e);
   cam.pose.position_mm = eye;
   cam.pose.orientation = LookAt(eye, look);
   cam.lens_roll_rad = Lerp(a.start.lens_roll_rad, a.end.lens_roll_rad, e);
