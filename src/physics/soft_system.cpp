@@ -462,15 +462,29 @@ void SoftSystem::ComputeRotationsAndForces(const Eigen::VectorXd& x) {
   for (Body& bd : bodies_) {
     const auto nt = static_cast<std::int64_t>(bd.rest.size());
     ParallelFor(nt, kTetBlock, [&](std::int64_t begin, std::int64_t end) {
-      for (std::int64_t t = begin; t < end; ++t) {
-        const auto ti = static_cast<std::size_t>(t);
-        const TetRest& rest = bd.rest[ti];
-        if (!bd.alive[ti] || rest.degenerate) continue;
-        const auto& s = bd.tet_slot[ti];
-        const Vec3 x0 = Seg(x, s[0]), x1 = Seg(x, s[1]), x2 = Seg(x, s[2]), x3 = Seg(x, s[3]);
-        const Mat3 f = DeformationGradient(rest, x0, x1, x2, x3);
-        bd.rotation[ti] = PolarRotation(f);
-        ElementForces(rest, bd.rotation[ti], f, bd.lame, &bd.force[ti]);
+      // Batches of live tets: deformation gradients, their rotations side by side, then forces.
+      constexpr int kBatch = 32;
+      std::array<Mat3, kBatch> fs, rs;
+      std::array<std::size_t, kBatch> ids;
+      std::int64_t t = begin;
+      while (t < end) {
+        int m = 0;
+        for (; t < end && m < kBatch; ++t) {
+          const auto ti = static_cast<std::size_t>(t);
+          const TetRest& rest = bd.rest[ti];
+          if (!bd.alive[ti] || rest.degenerate) continue;
+          const auto& s = bd.tet_slot[ti];
+          fs[static_cast<std::size_t>(m)] =
+              DeformationGradient(rest, Seg(x, s[0]), Seg(x, s[1]), Seg(x, s[2]), Seg(x, s[3]));
+          ids[static_cast<std::size_t>(m++)] = ti;
+        }
+        PolarRotations(fs.data(), rs.data(), m);
+        for (int k = 0; k < m; ++k) {
+          const std::size_t ti = ids[static_cast<std::size_t>(k)];
+          bd.rotation[ti] = rs[static_cast<std::size_t>(k)];
+          ElementForces(bd.rest[ti], bd.rotation[ti], fs[static_cast<std::size_t>(k)], bd.lame,
+                        &bd.force[ti]);
+        }
       }
     });
   }

@@ -155,7 +155,9 @@ TEST(SoftSystem, FreeVibrationEnergyDecays) {
       sys.Step(model, nullptr, nullptr, &state);
       const double e = sys.ComputeEnergies(model, state).total();
       EXPECT_LE(e, prev * (1 + 1e-9)) << "step " << k << " damping " << damping;
-      if (damping == 0) EXPECT_LT(e, prev) << "step " << k;
+      if (damping == 0) {
+        EXPECT_LT(e, prev) << "step " << k;
+      }
       prev = e;
     }
     EXPECT_LT(prev, 0.9 * e0);

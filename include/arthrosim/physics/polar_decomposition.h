@@ -9,4 +9,8 @@ namespace arthrosim::physics {
 /// singular direction is flipped so that R stays a rotation. A pure function of F.
 Mat3 PolarRotation(const Mat3& f);
 
+/// r[i] = the rotation of f[i] for i < count, by PolarRotation's method with the Newton steps of
+/// four matrices interleaved (vectorised); each r[i] depends on f[i] only (not on the batching).
+void PolarRotations(const Mat3* f, Mat3* r, int count);
+
 }  // namespace arthrosim::physics
