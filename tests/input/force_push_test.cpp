@@ -137,6 +137,26 @@ TEST(ForcePush, ExcursionIsBlendedOutByTheNextMove) {
   EXPECT_NEAR(r.depth_mm[IndexAt(r, 2.7)], -2.0, 1e-9);
 }
 
+TEST(ForcePush, ASecondForcePushStartsWhereTheFirstLeftAndTheCameraFollowsTheTip) {
+  const Model m = MakeTestModel();
+  const std::string y = Script("{force: 1.0, duration: 1.0}",
+                               "  - press: {button: 1, duration: 0.1}\n"
+                               "  - push: {force: 0.5, duration: 1.0}\n") +
+                        "camera:\n  - follow: {target: slot0, duration: 4, transition: 0.1}\n";
+  ScriptSource s(y, "t.yaml", m, Opt());
+  const SpringRun r = RunSpring(&s, 1.0, 3.1);
+  // First push: 1 N on 1 N/mm, 5 time constants of 0.2 s -> within 1% of 1 mm.
+  const double first = r.depth_mm[IndexAt(r, 1.99)];
+  EXPECT_NEAR(first, 1.0, 0.01);
+  // The second starts from there (no jump back to the written position) and relaxes to 0.5 mm.
+  EXPECT_NEAR(r.depth_mm[IndexAt(r, 2.11)], first + 5.0 * kDt * (0.5 - first), 1e-9);
+  EXPECT_NEAR(r.depth_mm[IndexAt(r, 3.09)], 0.5, 0.01);
+  // The camera keeps the pushed tip on its line of sight (+z, LookAtOrientation).
+  const InputFrame& f = r.frames[IndexAt(r, 3.09)];
+  const Vec3 to_tip = (f.tools[0].pose.position_mm - f.camera.pose.position_mm).normalized();
+  EXPECT_NEAR((f.camera.pose.orientation * Vec3::UnitZ()).dot(to_tip), 1.0, 1e-9);
+}
+
 TEST(ForcePush, SameFeedbackGivesBitIdenticalFramesAndRepeatedTimesAreIdempotent) {
   const Model m = MakeTestModel();
   const std::string y = Script("{force: [[0, 0], [0.5, 1.5], [1.5, 0.5]], gain: 8}",
