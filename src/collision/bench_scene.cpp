@@ -155,7 +155,9 @@ int BenchInstrument(const Model& model, int slot) {
 
 }  // namespace
 
-CollisionBenchResult BenchmarkCollision(const Model& model, int steps) {
+CollisionBenchResult BenchmarkCollision(
+    const Model& model, int steps,
+    const std::function<void(int step, const CollisionOutput& out)>& on_step) {
   State state = MakeInitialState(model);
   std::vector<Points> rest;
   for (const SoftBodyState& b : state.soft_bodies) rest.push_back(b.x);
@@ -246,6 +248,7 @@ CollisionBenchResult BenchmarkCollision(const Model& model, int steps) {
     Detect(model, state, s == 0 ? state.tools : prev, params, &world, &out);
     ms.push_back(CpuMs() - t0);
     contacts += static_cast<double>(out.contacts.size());
+    if (on_step) on_step(s, out);
   }
   CollisionBenchResult r;
   if (ms.empty()) return r;

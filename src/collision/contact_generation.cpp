@@ -361,6 +361,134 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
   }
 }
 
+// ---- sharp tool point inside the tissue volume ---------------------------------------------
+
+// Barycentric weights of p in tet (a, b, c, d); false if the tet is degenerate.
+bool TetWeights(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d,
+                std::array<double, 4>* w) {
+  Eigen::Matrix3d m;
+  m.col(0) = b - a;
+  m.col(1) = c - a;
+  m.col(2) = d - a;
+  const double det = m.determinant();
+  if (!(std::abs(det) > 1e-15)) return false;
+  const Vec3 l = m.inverse() * (p - a);
+  *w = {1 - l[0] - l[1] - l[2], l[0], l[1], l[2]};
+  return true;
+}
+
+// A sharp point (the end v0 of an awl-point core) is held at tissue vertices and at one point
+// per surface triangle; on coarse tissue the tented triangles around it fold and slide off
+// sideways. So the material the point has gone through in this step is held too: each sweep
+// substep position of the point that lies inside an alive tet (deformed, at t_n) gives a contact
+// on that material point (the tet's four nodes, barycentric weights) pushing it ahead of the
+// point along the part's axis, to the plane through the current point + radius + skin. The
+// axis, not the surface normal, so a tented apex cannot be pushed sideways, and one-sided, so
+// retracting the point releases the material.
+void ToolVolume(Builder* B, int slot, const Sweep& sw, int body, const SoftBodyState& sb,
+                const CollisionWorld::SoftEntry& e) {
+  const CollisionParams& P = B->params;
+  if (!P.sharp_point_volume_contacts || sw.prim->part != ToolPart::kAwlTip || sw.sub.back().n < 2) {
+    return;
+  }
+  const Simplex& now = sw.sub.back();
+  const Vec3 axis = SafeNormalized(now.v[0] - now.v[1], Vec3::UnitZ());
+  const double reach = sw.prim->radius_mm + P.contact_distance_mm;
+  // Material points: the point's position at each substep (what it went through this step) and
+  // points ahead of it up to the alarm distance beyond its surface (what it may reach during the
+  // solve: contacts exist before touching, as everywhere else).
+  thread_local std::vector<Vec3> pts;
+  pts.clear();
+  for (const Simplex& s : sw.sub) pts.push_back(s.v[0]);
+  const double ahead = reach + P.alarm_distance_mm;
+  const int n_ahead = static_cast<int>(std::ceil(ahead / (P.sweep_fraction * P.alarm_distance_mm)));
+  for (int j = 1; j <= n_ahead; ++j) pts.push_back(now.v[0] + (ahead * j / n_ahead) * axis);
+  Box path;
+  for (const Vec3& p : pts) path.Add(p);
+  if (e.bvh.empty() || !path.Overlaps(e.bvh.Bounds())) return;
+  // Four planes tilted toward the axis by atan(kEngage) (a pyramid ahead of the point): at the
+  // axis each asks for `reach` ahead of the core end; a material point that slides sideways by l
+  // must be kEngage * l further ahead, so it is pushed back toward the axis (the point has
+  // engaged it, like friction mu = kEngage) instead of sliding off.
+  constexpr double kEngage = 1.0;
+  const double inv_len = 1 / std::sqrt(1 + kEngage * kEngage);
+  const Vec3 e1 = axis.unitOrthogonal(), e2 = axis.cross(e1);
+  const std::array<Vec3, 4> lateral{e1, -e1, e2, -e2};
+  const std::size_t nsub = pts.size();
+  thread_local std::vector<std::int32_t> owner;  // first tet holding each point
+  thread_local std::vector<std::array<double, 4>> weights;
+  owner.assign(nsub, -1);
+  weights.assign(nsub, {0, 0, 0, 0});
+  for (std::size_t t = 0; t < sb.tets.size(); ++t) {
+    if (t < sb.tet_alive.size() && !sb.tet_alive[t]) continue;
+    const mesh::Tet& tet = sb.tets[t];
+    Box tb;
+    for (std::int32_t n : tet) tb.Add(sb.x.col(n));
+    if (!tb.Overlaps(path)) continue;
+    for (std::size_t s = 0; s < nsub; ++s) {
+      const Vec3& p = pts[s];
+      if (owner[s] >= 0 || !tb.Overlaps(Box{p, p})) continue;
+      std::array<double, 4> w;
+      if (!TetWeights(p, sb.x.col(tet[0]), sb.x.col(tet[1]), sb.x.col(tet[2]), sb.x.col(tet[3]),
+                      &w)) {
+        continue;
+      }
+      if (*std::min_element(w.begin(), w.end()) < 0) continue;
+      owner[s] = static_cast<std::int32_t>(t);
+      weights[s] = w;
+    }
+  }
+  auto engage = [&](const std::array<std::int32_t, 4>& nodes, const std::array<double, 4>& w) {
+    for (const Vec3& side : lateral) {
+      PointContact c;
+      c.target = PointContact::Target::kSoftBody;
+      c.index = body;
+      c.nodes = nodes;
+      c.weights = w;
+      c.normal = (axis - kEngage * side) * inv_len;
+      c.offset_mm = c.normal.dot(now.v[0]) + reach * inv_len;
+      c.stiffness_n_per_mm = P.tool_volume_stiffness_n_per_mm;
+      c.tool_slot = slot;
+      B->Add(c, Kind::kTool);
+    }
+  };
+  for (std::size_t s = 0; s < nsub; ++s) {
+    if (owner[s] < 0) continue;
+    const mesh::Tet& tet = sb.tets[owner[s]];
+    if (B->SoftFixed(body, tet[0]) && B->SoftFixed(body, tet[1]) && B->SoftFixed(body, tet[2]) &&
+        B->SoftFixed(body, tet[3])) {
+      continue;
+    }
+    engage({tet[0], tet[1], tet[2], tet[3]}, weights[s]);
+  }
+  // Surface points on the point's path: where the segment from last step's point to `ahead`
+  // beyond the current one crosses a boundary triangle (a thin membrane's far surface, which a
+  // coarse tet may not hold in front of the point once it is squeezed).
+  const Vec3 from = sw.sub.front().v[0], to = pts.back();
+  const Vec3 dir = to - from;
+  thread_local std::vector<std::int32_t> tris;
+  tris.clear();
+  Box seg;
+  seg.Add(from);
+  seg.Add(to);
+  e.bvh.Query(seg, &tris);
+  for (std::int32_t t : tris) {
+    const mesh::Tri& g = e.surface.tris[t];
+    const mesh::Tri& l = e.surface.local_tris[t];
+    const Vec3 a = e.positions[l[0]], b = e.positions[l[1]], c = e.positions[l[2]];
+    const Vec3 ab = b - a, ac = c - a, pv = dir.cross(ac);
+    const double det = ab.dot(pv);
+    if (!(std::abs(det) > 1e-15)) continue;  // parallel: the volume points hold it
+    const Vec3 tv = from - a;
+    const double u = tv.dot(pv) / det;
+    const Vec3 qv = tv.cross(ab);
+    const double v = dir.dot(qv) / det, f = ac.dot(qv) / det;
+    if (u < 0 || v < 0 || u + v > 1 || f < 0 || f > 1) continue;
+    if (B->SoftFixed(body, g[0]) && B->SoftFixed(body, g[1]) && B->SoftFixed(body, g[2])) continue;
+    engage({g[0], g[1], g[2], -1}, {1 - u - v, u, v, 0});
+  }
+}
+
 // ---- tool against thread ------------------------------------------------------------------
 
 void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
@@ -744,7 +872,10 @@ void Detect(const Model& model, const State& state,
     const std::vector<Sweep> sweeps = MakeSweeps(model, prev_tools[slot], state.tools[slot], params,
                                                  &prims, &out->substeps[slot]);
     for (std::size_t b = 0; b < world->soft.size(); ++b) {
-      for (const Sweep& sw : sweeps) ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);
+      for (const Sweep& sw : sweeps) {
+        ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);
+        ToolVolume(&B, slot, sw, static_cast<int>(b), state.soft_bodies[b], world->soft[b]);
+      }
     }
     for (std::size_t t = 0; t < state.threads.size(); ++t) {
       for (const Sweep& sw : sweeps) ToolThread(&B, slot, sw, static_cast<int>(t));

@@ -2,8 +2,10 @@
 // Timing of the collision stage on a full scene, for `arthrosim bench` and Google Benchmark.
 // Time is measured here only (thread CPU time); it never influences a simulation result.
 #include <cstdint>
+#include <functional>
 #include <string>
 
+#include "arthrosim/collision/contact_generation.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/mesh/tet_mesh.h"
 
@@ -33,8 +35,11 @@ struct CollisionBenchResult {
 /// else body 0), a grasper (slot 0) and a shaver (slot 1) (else instruments 0 and 1), coming from
 /// above tilted 30 degrees toward their portals, press 0.5 mm into that surface and cross the
 /// thread along y at 100 mm/s (dt = 20 ms), the soft bodies carry a 0.3 mm travelling wave.
-/// Deterministic workload.
-CollisionBenchResult BenchmarkCollision(const Model& model, int steps);
+/// Deterministic workload. `on_step`, if set, sees each step's output (outside the timing), e.g.
+/// to dump the contacts and check that a speed change leaves them unchanged.
+CollisionBenchResult BenchmarkCollision(
+    const Model& model, int steps,
+    const std::function<void(int step, const CollisionOutput& out)>& on_step = {});
 
 /// The figures as `key=value` lines for `arthrosim bench`, the first one
 /// `collision_ms_median=<ms>`.

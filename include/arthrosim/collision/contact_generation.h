@@ -35,6 +35,11 @@ struct CollisionParams {
   int max_substeps = 64;                        ///< cap on tool sweep substeps per step
   double tool_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point
   double tool_thread_stiffness_n_per_mm = 2.0;  ///< per contact point
+  /// Sharp points (awl) also hold the material they enter and their path's surface crossings
+  /// (docs/contact-model.md "Sharp points"); false only to show what happens without.
+  bool sharp_point_volume_contacts = true;
+  /// Per plane of those contacts (four planes per material point).
+  double tool_volume_stiffness_n_per_mm = 20.0;
   double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides)
   double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point
   double tool_bone_stiffness_n_per_mm = 5.0;      ///< reaction on the (kinematic) tool, per part
