@@ -53,18 +53,31 @@ void ElementStiffnessBlocks(const TetRest& rest, const Mat3& r, const Lame& lame
   g[2] = rest.dm_inv.row(1).transpose();
   g[3] = rest.dm_inv.row(2).transpose();
   g[0] = -(g[1] + g[2] + g[3]);
-  std::array<Vec3, 4> gr;
-  for (int a = 0; a < 4; ++a) gr[a] = r * g[a];
+  // Rotated gradients as plain arrays: the 10 blocks below are written out entry by entry
+  // (Eigen's outer-product expressions cost several times more on 3x3 blocks).
+  double gr[4][3];
+  for (int a = 0; a < 4; ++a) {
+    const Vec3 v = r * g[a];
+    gr[a][0] = v[0];
+    gr[a][1] = v[1];
+    gr[a][2] = v[2];
+  }
   const double v = scale * rest.volume;
   const double vl = v * lame.lambda;
   const double vm = v * lame.mu;
-  auto block = [&](int a, int b) {
-    Mat3 k = vl * (gr[a] * gr[b].transpose()) + vm * (gr[b] * gr[a].transpose());
-    k.diagonal().array() += vm * g[a].dot(g[b]);
-    return k;
+  auto block = [&](int a, int b, Mat3* k) {
+    const double* ga = gr[a];
+    const double* gb = gr[b];
+    for (int j = 0; j < 3; ++j) {
+      for (int i = 0; i < 3; ++i) (*k)(i, j) = vl * (ga[i] * gb[j]) + vm * (gb[i] * ga[j]);
+    }
+    const double d = vm * g[a].dot(g[b]);
+    (*k)(0, 0) += d;
+    (*k)(1, 1) += d;
+    (*k)(2, 2) += d;
   };
-  for (int a = 0; a < 4; ++a) (*blocks)[a] = block(a, a);
-  for (int e = 0; e < 6; ++e) (*blocks)[4 + e] = block(kTetEdges[e][0], kTetEdges[e][1]);
+  for (int a = 0; a < 4; ++a) block(a, a, &(*blocks)[a]);
+  for (int e = 0; e < 6; ++e) block(kTetEdges[e][0], kTetEdges[e][1], &(*blocks)[4 + e]);
 }
 
 }  // namespace arthrosim::physics
