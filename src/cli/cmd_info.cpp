@@ -8,6 +8,7 @@
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/mesh/mesh_io.h"
+#include "arthrosim/mesh/mesh_summary.h"
 #include "commands.h"
 
 namespace arthrosim::cli {
@@ -50,11 +51,7 @@ void PrintScenario(const std::string& path) {
 }
 
 void PrintMesh(const std::string& path) {
-  const mesh::MeshData d = mesh::ReadMesh(path);
-  fmt::print(
-      "mesh {} (format {})\n  {} nodes, {} tets, {} triangles, {} lines, {} groups\n  bounds {}\n",
-      path, d.format, d.volume.nodes.cols(), d.volume.tets.size(), d.surface.tris.size(),
-      d.lines.edges.size(), d.groups.size(), Bounds(d.volume.nodes));
+  fmt::print("mesh {}\n{}", path, mesh::FormatSummary(mesh::Summarize(mesh::ReadMesh(path))));
 }
 
 }  // namespace
