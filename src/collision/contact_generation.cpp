@@ -734,7 +734,31 @@ void ResetNearBone(std::int64_t version, std::size_t slots, NearBoneCache* cache
   cache->wide.assign(slots, Box{});
   cache->valid.assign(slots, 0);
   cache->tris.assign(slots, {});
+  cache->far_at.assign(slots, Vec3::Zero());
+  cache->far_margin.assign(slots, -1.0);
 }
+
+// True if every undirected edge of the triangles is shared by exactly two of them.
+bool ClosedSurface(const std::vector<mesh::Tri>& tris) {
+  std::vector<std::pair<std::int32_t, std::int32_t>> edges;
+  edges.reserve(3 * tris.size());
+  for (const mesh::Tri& t : tris) {
+    for (int k = 0; k < 3; ++k) {
+      edges.emplace_back(std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3]));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size(); i += 2) {
+    if (i + 1 >= edges.size() || edges[i] != edges[i + 1] ||
+        (i + 2 < edges.size() && edges[i + 2] == edges[i])) {
+      return false;
+    }
+  }
+  return !edges.empty();
+}
+
+// Rounding allowance (mm) of the out-of-contact bound: distances are computed to ~1e-12 mm.
+constexpr double kCertSlack = 1e-6;
 
 void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
                 CollisionWorld::BoneEntry& g) {
@@ -750,13 +774,28 @@ void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
     const std::int32_t node = s.surface.vertices[v];
     if (B->SoftFixed(body, node)) continue;
     const Vec3& p = s.positions[v];
+    // Still within the bound of an earlier search that found it clearly out of contact: the
+    // same search now would too (no contact; the candidate cache is only a shortcut).
+    if (cache.far_margin[vi] > 0 && (p - cache.far_at[vi]).norm() < cache.far_margin[vi]) continue;
+    cache.far_margin[vi] = -1;
     NearBoneTriangles(g, &cache, vi, Box{p.array() - margin, p.array() + margin}, &cand);
     if (cand.empty()) continue;
     const Nearest n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, g.bvh, g.positions,
                                        g.indexed.local_tris);
     if (!n.found) continue;
     const double sd = n.Signed();
-    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
+    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) {
+      // Outside a closed surface within `margin` (so the search saw every triangle that near
+      // and the sign is exact), the signed distance is 1-Lipschitz: after moving less than
+      // sd - alarm the vertex is still out of reach. (Around the rim of an open surface the
+      // sign may flip; beyond `margin` the search only bounds the distance from above.)
+      const double bound = sd - P.alarm_distance_mm - kCertSlack;
+      if (g.closed && sd < margin && bound > 0) {
+        cache.far_at[vi] = p;
+        cache.far_margin[vi] = bound;
+      }
+      continue;
+    }
     PointContact c;
     c.target = PointContact::Target::kSoftBody;
     c.index = body;
@@ -849,6 +888,7 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
     e.indexed = MakeSurface(CanonicalTriangles(m.tris));
     FillPositions(m.nodes, e.indexed.vertices, &e.positions);
     e.bvh.Build(e.positions, e.indexed.local_tris);
+    e.closed = ClosedSurface(e.indexed.tris);
     e.built = true;
     ++e.version;
     ++world->rebuilds;
@@ -932,8 +972,13 @@ void Detect(const Model& model, const State& state,
     if (a.index != b.index) return a.index < b.index;
     if (B.kinds[i] != B.kinds[j]) return B.kinds[i] < B.kinds[j];
     if (a.obstacle_id != b.obstacle_id) return a.obstacle_id < b.obstacle_id;
-    if (a.nodes != b.nodes) return a.nodes < b.nodes;
-    if (a.weights != b.weights) return a.weights < b.weights;
+    // Element by element (std::array's operators go through memcmp and a lexicographic compare).
+    for (int k = 0; k < 4; ++k) {
+      if (a.nodes[k] != b.nodes[k]) return a.nodes[k] < b.nodes[k];
+    }
+    for (int k = 0; k < 4; ++k) {
+      if (a.weights[k] != b.weights[k]) return a.weights[k] < b.weights[k];
+    }
     if (a.offset_mm != b.offset_mm) return a.offset_mm < b.offset_mm;
     for (int k = 0; k < 3; ++k) {
       if (a.normal[k] != b.normal[k]) return a.normal[k] < b.normal[k];

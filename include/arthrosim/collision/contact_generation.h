@@ -55,6 +55,11 @@ struct NearBoneCache {
   std::vector<Box> wide;           ///< box each list was made for, mm
   std::vector<std::uint8_t> valid;
   std::vector<std::vector<std::int32_t>> tris;  ///< ascending bone triangle indices
+  /// Tissue-bone only: a slot found clearly out of contact at position far_at[i] needs no new
+  /// search while it stays within far_margin[i] (mm) of it (the signed distance to a closed
+  /// static surface changes by at most the distance moved); far_margin < 0 = no such bound.
+  std::vector<Vec3> far_at;
+  std::vector<double> far_margin;
 };
 
 /// Derived collision data (surfaces, trees): Workspace, rebuilt from State at will.
@@ -74,6 +79,7 @@ struct CollisionWorld {
     std::vector<Vec3> positions;
     TriangleBvh bvh;
     bool built = false;
+    bool closed = false;       ///< every edge shared by exactly two triangles (signed distance)
     std::int64_t version = 0;  ///< increases at every (re)build
   };
   struct ThreadEntry {
