@@ -4,8 +4,10 @@
 #include <cmath>
 #include <cstddef>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
+#include "cull.h"
 #include "gl_api.h"
 #include "overlay.h"
 #include "shaders.h"
@@ -110,14 +112,15 @@ struct Renderer::Impl {
   std::vector<unsigned char> buffer;  // OSMesa colour buffer, RGBA, bottom-up
   int buf_w = 0, buf_h = 0;
   GlApi gl;
-  GLuint mesh_prog = 0, post_prog = 0;
+  // one mesh program per SceneMaterial::pattern (0 plain, 1 braid, 2 bone)
+  static constexpr int kPatterns = 3;
+  GLuint mesh_prog[kPatterns] = {}, post_prog = 0;
   GLuint vao = 0, vbo = 0, ebo = 0, post_vao = 0;
   GLuint fbo = 0, fbo_tex = 0, fbo_depth = 0;
   int fbo_size = 0;
-  struct {
-    GLint view_proj, base, spec, shininess, metal, pattern, eye, light, ref2, spot_dir, spot,
-        ambient;
-  } mu{};
+  struct MeshUniforms {
+    GLint view_proj, base, spec, shininess, metal, eye, light, ref2, spot_dir, spot, ambient;
+  } mu[kPatterns]{};
   struct {
     GLint tex, center, radius, theta_max, tan_max, k;
   } pu{};
@@ -127,6 +130,7 @@ struct Renderer::Impl {
     GLsizei count;
     std::size_t first;
     GLint base_vertex;
+    Eigen::AlignedBox3d box;  // of the mesh's vertices (mm)
   };
   std::vector<Range> ranges;
   std::vector<std::size_t> order;  // draw order: near layers first so depth tests cull more
@@ -150,8 +154,10 @@ struct Renderer::Impl {
     indices.clear();
     ranges.clear();
     for (const SceneMesh& m : scene.meshes) {
+      Eigen::AlignedBox3d box;
+      for (const Vertex& v : m.vertices) box.extend(Vec3(v.pos[0], v.pos[1], v.pos[2]));
       ranges.push_back({static_cast<GLsizei>(m.indices.size()), indices.size(),
-                        static_cast<GLint>(vertices.size())});
+                        static_cast<GLint>(vertices.size()), box});
       vertices.insert(vertices.end(), m.vertices.begin(), m.vertices.end());
       indices.insert(indices.end(), m.indices.begin(), m.indices.end());
     }
@@ -211,32 +217,57 @@ struct Renderer::Impl {
   }
 
   // Draws the meshes (scope view: those visible in the scope) with one camera and light.
+  // `near_reach` (mm) bounds the distance from the eye to any point of the near clip rectangle.
   void DrawMeshes(const Scene& scene, const Mat4& view_proj, const Vec3& eye, bool scope_light,
-                  const Vec3& spot_dir, double ref_mm) {
-    gl.UseProgram(mesh_prog);
+                  const Vec3& spot_dir, double ref_mm, double near_reach) {
     const Eigen::Matrix4f vp = view_proj.cast<float>();
-    gl.UniformMatrix4fv(mu.view_proj, 1, GL_FALSE, vp.data());
-    gl.Uniform3f(mu.eye, float(eye.x()), float(eye.y()), float(eye.z()));
-    gl.Uniform3f(mu.light, float(eye.x()), float(eye.y()), float(eye.z()));
-    gl.Uniform1f(mu.ref2, scope_light ? float(ref_mm * ref_mm) : 0.0f);
-    gl.Uniform3f(mu.spot_dir, float(spot_dir.x()), float(spot_dir.y()), float(spot_dir.z()));
-    gl.Uniform1i(mu.spot, scope_light ? 1 : 0);
-    gl.Uniform1f(mu.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
+    for (int p = 0; p < kPatterns; ++p) {
+      const MeshUniforms& u = mu[p];
+      gl.UseProgram(mesh_prog[p]);
+      gl.UniformMatrix4fv(u.view_proj, 1, GL_FALSE, vp.data());
+      gl.Uniform3f(u.eye, float(eye.x()), float(eye.y()), float(eye.z()));
+      gl.Uniform3f(u.light, float(eye.x()), float(eye.y()), float(eye.z()));
+      gl.Uniform1f(u.ref2, scope_light ? float(ref_mm * ref_mm) : 0.0f);
+      gl.Uniform3f(u.spot_dir, float(spot_dir.x()), float(spot_dir.y()), float(spot_dir.z()));
+      gl.Uniform1i(u.spot, scope_light ? 1 : 0);
+      gl.Uniform1f(u.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
+    }
+    int current = kPatterns - 1;  // bound last in the loop above
+    bool culling = false;         // Render() starts with culling off
     gl.BindVertexArray(vao);
     for (const std::size_t i : order) {
       const SceneMesh& m = scene.meshes[i];
       if (ranges[i].count == 0 || (scope_light && !m.visible_in_scope)) continue;
       const SceneMaterial& mat = m.material;
-      gl.Uniform3f(mu.base, mat.base_color[0], mat.base_color[1], mat.base_color[2]);
-      gl.Uniform1f(mu.spec, mat.specular);
-      gl.Uniform1f(mu.shininess, mat.shininess);
-      gl.Uniform1f(mu.metal, mat.metallic);
-      gl.Uniform1i(mu.pattern, mat.pattern);
+      const int p = mat.pattern == 1 || mat.pattern == 2 ? mat.pattern : 0;
+      if (p != current) {
+        gl.UseProgram(mesh_prog[p]);
+        current = p;
+      }
+      // Skipping hidden back faces halves the rasterised area of bones and soft tissue; the
+      // box test skips the exact check for meshes far from the eye.
+      const double reach = 1.01 * near_reach + 1e-3;
+      const bool cull = m.closed && (ranges[i].box.exteriorDistance(eye) > reach ||
+                                     BackFacesHidden(m, eye, reach));
+      if (cull != culling) {
+        if (cull) {
+          glEnable(GL_CULL_FACE);
+        } else {
+          glDisable(GL_CULL_FACE);
+        }
+        culling = cull;
+      }
+      const MeshUniforms& u = mu[p];
+      gl.Uniform3f(u.base, mat.base_color[0], mat.base_color[1], mat.base_color[2]);
+      gl.Uniform1f(u.spec, mat.specular);
+      gl.Uniform1f(u.shininess, mat.shininess);
+      gl.Uniform1f(u.metal, mat.metallic);
       gl.DrawElementsBaseVertex(
           GL_TRIANGLES, ranges[i].count, GL_UNSIGNED_INT,
           reinterpret_cast<const void*>(ranges[i].first * sizeof(std::uint32_t)),
           ranges[i].base_vertex);
     }
+    glDisable(GL_CULL_FACE);
   }
 
   void RenderScope(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
@@ -260,7 +291,9 @@ struct Renderer::Impl {
     glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
-    DrawMeshes(scene, view_proj, f.eye, true, f.forward, spec.light_ref_mm);
+    const double near = scene.scope.near_mm;
+    DrawMeshes(scene, view_proj, f.eye, true, f.forward, spec.light_ref_mm,
+               near * std::sqrt(1.0 + 2.0 * tan_max * tan_max));
 
     // pass 2: lens distortion and field stop into the output viewport
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -300,8 +333,9 @@ struct Renderer::Impl {
     const double tan_min = std::min(tan_y, tan_y * aspect);
     const double dist = 1.1 * radius / std::sin(std::atan(tan_min));
     const Vec3 eye = centre + dist * dir;
+    const double near = 0.05 * dist;
     const Mat4 view_proj =
-        Perspective(tan_y, aspect, 0.05 * dist, dist + 4 * radius + 200) * LookAt(eye, -dir, up);
+        Perspective(tan_y, aspect, near, dist + 4 * radius + 200) * LookAt(eye, -dir, up);
     glViewport(vp.x, vp.y, vp.w, vp.h);
     glScissor(vp.x, vp.y, vp.w, vp.h);
     glEnable(GL_SCISSOR_TEST);
@@ -309,7 +343,8 @@ struct Renderer::Impl {
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glDisable(GL_SCISSOR_TEST);
     glEnable(GL_DEPTH_TEST);
-    DrawMeshes(scene, view_proj, eye, false, -dir, 0.0);
+    DrawMeshes(scene, view_proj, eye, false, -dir, 0.0,
+               near * std::sqrt(1.0 + tan_y * tan_y * (1.0 + aspect * aspect)));
   }
 };
 
@@ -343,13 +378,17 @@ Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>(
     throw RenderError(std::string("OSMesa lacks the OpenGL entry point ") + missing);
   }
   const GlApi& gl = s.gl;
-  s.mesh_prog = Link(gl, shaders::kMeshVertex, shaders::kMeshFragment);
-  s.post_prog = Link(gl, shaders::kPostVertex, shaders::kPostFragment);
   auto u = [&](GLuint p, const char* name) { return gl.GetUniformLocation(p, name); };
-  s.mu = {u(s.mesh_prog, "u_view_proj"), u(s.mesh_prog, "u_base"),  u(s.mesh_prog, "u_spec"),
-          u(s.mesh_prog, "u_shininess"), u(s.mesh_prog, "u_metal"), u(s.mesh_prog, "u_pattern"),
-          u(s.mesh_prog, "u_eye"),       u(s.mesh_prog, "u_light"), u(s.mesh_prog, "u_ref2"),
-          u(s.mesh_prog, "u_spot_dir"),  u(s.mesh_prog, "u_spot"),  u(s.mesh_prog, "u_ambient")};
+  for (int p = 0; p < Impl::kPatterns; ++p) {
+    const std::string fragment = "#version 330 core\n#define PATTERN " + std::to_string(p) + "\n" +
+                                 shaders::kMeshFragmentBody;
+    const GLuint prog = s.mesh_prog[p] = Link(gl, shaders::kMeshVertex, fragment.c_str());
+    s.mu[p] = {u(prog, "u_view_proj"), u(prog, "u_base"),   u(prog, "u_spec"),
+               u(prog, "u_shininess"), u(prog, "u_metal"),  u(prog, "u_eye"),
+               u(prog, "u_light"),     u(prog, "u_ref2"),   u(prog, "u_spot_dir"),
+               u(prog, "u_spot"),      u(prog, "u_ambient")};
+  }
+  s.post_prog = Link(gl, shaders::kPostVertex, shaders::kPostFragment);
   s.pu = {u(s.post_prog, "u_tex"),       u(s.post_prog, "u_center"),  u(s.post_prog, "u_radius"),
           u(s.post_prog, "u_theta_max"), u(s.post_prog, "u_tan_max"), u(s.post_prog, "u_k")};
 
@@ -382,7 +421,7 @@ Renderer::~Renderer() {
       OSMesaMakeCurrent(s.ctx, s.buffer.data(), GL_UNSIGNED_BYTE, s.buf_w, s.buf_h)) {
     const GlApi& gl = s.gl;
     if (gl.DeleteProgram != nullptr) {
-      gl.DeleteProgram(s.mesh_prog);
+      for (const GLuint prog : s.mesh_prog) gl.DeleteProgram(prog);
       gl.DeleteProgram(s.post_prog);
       gl.DeleteVertexArrays(1, &s.vao);
       gl.DeleteVertexArrays(1, &s.post_vao);

@@ -92,6 +92,9 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
     mesh.layer = MeshLayer::kSoftTissue;
     mesh.material = TissueMaterial(mesh.name, false);
     ComputeVertexNormals(&mesh);
+    // inverted tets on the boundary can fold the surface; the volume sign catches a body turned
+    // inside out, not a local fold (see Renderer back-face culling)
+    mesh.closed = topo->closed && SignedVolume(mesh) > 0;
     scene->meshes.push_back(std::move(mesh));
   }
 }
@@ -101,6 +104,7 @@ SceneMesh BoneGeometry(const mesh::TriMesh& now, const mesh::TriMesh& initial,
                        const std::string& what) {
   SceneMesh mesh = TriangleMesh(now.nodes, now.tris, what);
   ComputeVertexNormals(&mesh);
+  mesh.closed = IsClosedSurface(mesh.indices) && SignedVolume(mesh) > 0;
   // subtle grain of the bone surface: a smooth, deterministic function of position
   for (Vertex& v : mesh.vertices) {
     const double g =

@@ -25,9 +25,11 @@ void main() {
 
 // Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
 // fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
-// overview: a headlight without fall-off (u_ref2 = 0). Patterns: 1 braided suture, 2 bone
-// (uv.x = albedo grain factor; procedural pits only where burred, to keep fragments cheap).
-inline constexpr const char* kMeshFragment = R"(#version 330 core
+// overview: a headlight without fall-off (u_ref2 = 0). PATTERN (a #define put in front of this
+// body, one program per pattern): 0 plain, 1 braided suture, 2 bone (uv.x = albedo grain factor;
+// procedural pits only where burred). One program per pattern because llvmpipe runs both sides
+// of a branch under a lane mask: a runtime pattern switch shaded every fragment with the noise.
+inline constexpr const char* kMeshFragmentBody = R"(
 in vec3 v_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -36,7 +38,6 @@ uniform vec3 u_base;
 uniform float u_spec;
 uniform float u_shininess;
 uniform float u_metal;
-uniform int u_pattern;
 uniform vec3 u_eye;
 uniform vec3 u_light;
 uniform float u_ref2;
@@ -45,6 +46,7 @@ uniform int u_spot;
 uniform float u_ambient;
 out vec4 o_color;
 
+#if PATTERN == 2
 float Hash(vec3 p) {
   p = fract(p * 0.3183099 + vec3(0.71, 0.113, 0.419));
   p *= 17.0;
@@ -59,6 +61,7 @@ float Noise(vec3 x) {
              mix(mix(Hash(i + vec3(0, 0, 1)), Hash(i + vec3(1, 0, 1)), f.x),
                  mix(Hash(i + vec3(0, 1, 1)), Hash(i + vec3(1, 1, 1)), f.x), f.y), f.z);
 }
+#endif
 
 void main() {
   vec3 n = normalize(v_normal);
@@ -66,23 +69,23 @@ void main() {
   if (dot(n, view) < 0.0) n = -n;  // two-sided: cut faces, thin blades, open tubes
   vec3 albedo = u_base;
   float spec = u_spec;
-  if (u_pattern == 1) {
-    // braid: two helices of white tracer over the blue
-    float a = fract(v_uv.x * 0.5 + v_uv.y * 2.0);
-    float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);
-    if (a < 0.16 || b < 0.08) albedo = vec3(0.93, 0.93, 0.90);
-  } else if (u_pattern == 2) {
-    albedo *= v_uv.x;  // per-vertex grain (BuildScene), cheaper than per-fragment noise
-    if (v_rough > 0.0) {
-      // burred: bleeding cancellous bone, pitted, dull
-      float pits = Noise(v_pos * 5.0);
-      vec3 cancellous = vec3(0.80, 0.46, 0.38) * (0.65 + 0.35 * pits);
-      albedo = mix(albedo, cancellous, v_rough);
-      spec *= 1.0 - 0.8 * v_rough;
-      vec3 jitter = vec3(Noise(v_pos * 4.0), Noise(v_pos * 4.0 + 17.0), Noise(v_pos * 4.0 + 31.0));
-      n = normalize(n + v_rough * 0.6 * (jitter - 0.5));
-    }
+#if PATTERN == 1
+  // braid: two helices of white tracer over the blue
+  float a = fract(v_uv.x * 0.5 + v_uv.y * 2.0);
+  float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);
+  if (a < 0.16 || b < 0.08) albedo = vec3(0.93, 0.93, 0.90);
+#elif PATTERN == 2
+  albedo *= v_uv.x;  // per-vertex grain (BuildScene), cheaper than per-fragment noise
+  if (v_rough > 0.0) {
+    // burred: bleeding cancellous bone, pitted, dull
+    float pits = Noise(v_pos * 5.0);
+    vec3 cancellous = vec3(0.80, 0.46, 0.38) * (0.65 + 0.35 * pits);
+    albedo = mix(albedo, cancellous, v_rough);
+    spec *= 1.0 - 0.8 * v_rough;
+    vec3 jitter = vec3(Noise(v_pos * 4.0), Noise(v_pos * 4.0 + 17.0), Noise(v_pos * 4.0 + 31.0));
+    n = normalize(n + v_rough * 0.6 * (jitter - 0.5));
   }
+#endif
   vec3 to_light = u_light - v_pos;
   float d2 = max(dot(to_light, to_light), 1e-6);
   vec3 l = to_light * inversesqrt(d2);

@@ -72,10 +72,40 @@ SoftTopology BuildTopology(const std::vector<mesh::Tet>& tets,
       topo.indices.push_back(static_cast<std::uint32_t>(remap[n]));
     }
   }
+  topo.closed = IsClosedSurface(topo.indices);
   return topo;
 }
 
 }  // namespace
+
+bool IsClosedSurface(const std::vector<std::uint32_t>& indices) {
+  if (indices.empty() || indices.size() % 3 != 0) return false;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
+  edges.reserve(indices.size());
+  for (std::size_t t = 0; t < indices.size(); t += 3) {
+    for (int k = 0; k < 3; ++k) edges.emplace_back(indices[t + k], indices[t + (k + 1) % 3]);
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    if (edges[i].first == edges[i].second) return false;                 // degenerate triangle
+    if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;  // edge used twice
+    const std::pair<std::uint32_t, std::uint32_t> reverse(edges[i].second, edges[i].first);
+    if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
+  }
+  return true;
+}
+
+double SignedVolume(const SceneMesh& mesh) {
+  auto p = [&](std::uint32_t i) {
+    const float* v = mesh.vertices[i].pos;
+    return Vec3(v[0], v[1], v[2]);
+  };
+  double six_v = 0;
+  for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+    six_v += p(mesh.indices[t]).dot(p(mesh.indices[t + 1]).cross(p(mesh.indices[t + 2])));
+  }
+  return six_v / 6.0;
+}
 
 std::shared_ptr<const SoftTopology> CachedSoftTopology(const std::vector<mesh::Tet>& tets,
                                                        const std::vector<std::uint8_t>& alive) {

@@ -17,9 +17,18 @@ namespace arthrosim::render {
 struct SoftTopology {
   std::vector<std::int32_t> nodes;     ///< tet-mesh node of each vertex, first-use order
   std::vector<std::uint32_t> indices;  ///< 3 per boundary face, into `nodes`
+  bool closed = false;                 ///< IsClosedSurface(indices)
   std::int32_t min_node = 0;           ///< smallest referenced node (< 0: invalid input)
   std::int32_t max_node = -1;          ///< largest referenced node (-1: none)
 };
+
+/// True if every directed edge of the triangles (3 indices each) occurs once and its reverse
+/// once: a closed, consistently wound surface (empty: false).
+bool IsClosedSurface(const std::vector<std::uint32_t>& indices);
+
+/// Enclosed volume of a mesh's triangles (mm^3), positive when counter-clockwise faces point
+/// outward; meaningful for closed surfaces only.
+double SignedVolume(const SceneMesh& mesh);
 
 /// The boundary topology of (tets, alive) (alive empty = all alive), from the memo or computed.
 /// Thread-safe.

@@ -41,6 +41,10 @@ struct SceneMesh {
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;  ///< 3 per triangle, counter-clockwise seen from outside
   bool visible_in_scope = true;        ///< false for the scope itself
+  /// Closed surface, every edge shared by exactly two triangles with opposite windings, and
+  /// positive enclosed volume (so counter-clockwise faces point outward): the renderer may then
+  /// skip back faces when the eye is outside the mesh's box.
+  bool closed = false;
 };
 
 /// The arthroscope for the scope view: tip pose plus optics.
