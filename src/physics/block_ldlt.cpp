@@ -2,6 +2,7 @@
 
 #include <Eigen/Sparse>
 #include <algorithm>
+#include <cmath>
 
 namespace arthrosim::physics {
 
@@ -22,6 +23,13 @@ struct BlockLdlt::Impl {
   std::vector<std::int32_t> rows;
   std::vector<double> vals;
   std::int64_t nnz = 0;
+  // Own numeric factorisation (left-looking, supernodal) on the pattern above: per supernode a
+  // dense column-major panel of (w + |R|) rows (its triangle, then the rows R) by w columns.
+  std::vector<std::int64_t> panel_at;    // supernode s: panel from panel_at[s]
+  std::vector<std::int32_t> sn_of_col;   // column -> supernode
+  std::vector<std::int64_t> a_to_panel;  // entry p of a -> its panel position
+  std::vector<double> panel, dvals, scaled, sums;
+  std::vector<std::int32_t> rel, head, next, cursor;
   mutable std::vector<double> work, acc;
 };
 
@@ -117,6 +125,184 @@ void BlockLdlt::Analyze(std::int32_t n, std::span<const std::array<std::int32_t,
   }
   m.ldlt.analyzePattern(m.a);
   m.work.assign(static_cast<std::size_t>(dim), 0.0);
+  Symbolic();
+}
+
+void BlockLdlt::Symbolic() {
+  Impl& m = *impl_;
+  const Eigen::Index dim = m.a.rows();
+  // The pattern of L from one factorisation of the identity on the same pattern (Eigen keeps
+  // structural entries whatever their values).
+  double* v = m.a.valuePtr();
+  for (Eigen::Index c = 0; c < dim; ++c) {
+    for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p)
+      v[p] = m.a.innerIndexPtr()[p] == c ? 1.0 : 0.0;
+  }
+  m.ldlt.factorize(m.a);
+  const auto& l = m.ldlt.matrixL().nestedExpression();
+  const int* lp = l.outerIndexPtr();
+  const int* li = l.innerIndexPtr();
+  m.nnz = dim > 0 ? lp[dim] : 0;
+  // Fundamental supernodes: column j + 1 continues the run of j when L(j + 1, j) is the first
+  // entry of column j and the patterns below agree (equal counts, nested by the elimination
+  // tree).
+  m.sn_col.clear();
+  m.sn_row.assign(1, 0);
+  m.sn_val.assign(1, 0);
+  m.panel_at.assign(1, 0);
+  m.rows.clear();
+  m.sn_of_col.assign(static_cast<std::size_t>(dim), 0);
+  std::size_t max_w = 1;
+  for (Eigen::Index c0 = 0; c0 < dim;) {
+    Eigen::Index c1 = c0 + 1;
+    while (c1 < dim && lp[c1] - lp[c1 - 1] == lp[c1 + 1] - lp[c1] + 1 && lp[c1] > lp[c1 - 1] &&
+           li[lp[c1 - 1]] == c1)
+      ++c1;
+    const auto w = static_cast<std::size_t>(c1 - c0);
+    max_w = std::max(max_w, w);
+    for (Eigen::Index c = c0; c < c1; ++c)
+      m.sn_of_col[static_cast<std::size_t>(c)] = static_cast<std::int32_t>(m.sn_col.size());
+    m.sn_col.push_back(static_cast<std::int32_t>(c0));
+    // Rows below the run: the pattern of its last column.
+    const int* rb = li + lp[c1 - 1];
+    const int* re = li + lp[c1];
+    m.rows.insert(m.rows.end(), rb, re);
+    const auto rcount = static_cast<std::int64_t>(re - rb);
+    const auto wi = static_cast<std::int64_t>(w);
+    m.sn_row.push_back(static_cast<std::int64_t>(m.rows.size()));
+    m.sn_val.push_back(m.sn_val.back() + wi * wi + rcount * wi);
+    m.panel_at.push_back(m.panel_at.back() + (wi + rcount) * wi);
+    c0 = c1;
+  }
+  m.sn_col.push_back(static_cast<std::int32_t>(dim));
+  m.acc.assign(max_w, 0.0);
+  m.vals.assign(static_cast<std::size_t>(m.sn_val.back()), 0.0);
+  m.panel.assign(static_cast<std::size_t>(m.panel_at.back()), 0.0);
+  m.inv_d.assign(static_cast<std::size_t>(dim), 0.0);
+  m.dvals.assign(static_cast<std::size_t>(dim), 0.0);
+  m.scaled.assign(max_w, 0.0);
+  std::int64_t max_rc = 1;
+  for (std::size_t q = 0; q + 1 < m.sn_row.size(); ++q)
+    max_rc = std::max(max_rc, m.sn_row[q + 1] - m.sn_row[q]);
+  m.sums.assign(static_cast<std::size_t>(max_rc), 0.0);
+  const std::size_t ns = m.sn_col.size() - 1;
+  m.head.assign(ns, -1);
+  m.next.assign(ns, -1);
+  m.cursor.assign(ns, 0);
+  m.rel.assign(static_cast<std::size_t>(dim), -1);
+  const auto& pp = m.ldlt.permutationP().indices();
+  m.perm.resize(static_cast<std::size_t>(dim));
+  for (Eigen::Index i = 0; i < dim; ++i)
+    m.perm[static_cast<std::size_t>(i)] = pp.size() ? pp[i] : static_cast<std::int32_t>(i);
+  // Where each stored entry (r >= c) of A lands: L position (max, min) of the permuted pair.
+  m.a_to_panel.assign(static_cast<std::size_t>(m.a.nonZeros()), -1);
+  for (Eigen::Index c = 0; c < dim; ++c) {
+    for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p) {
+      const std::int32_t pr = m.perm[static_cast<std::size_t>(m.a.innerIndexPtr()[p])];
+      const std::int32_t pc = m.perm[static_cast<std::size_t>(c)];
+      const std::int32_t row = std::max(pr, pc), col = std::min(pr, pc);
+      const auto sn = static_cast<std::size_t>(m.sn_of_col[static_cast<std::size_t>(col)]);
+      const std::int32_t c0 = m.sn_col[sn];
+      const std::int64_t w = m.sn_col[sn + 1] - c0;
+      const std::int64_t rc = m.sn_row[sn + 1] - m.sn_row[sn];
+      std::int64_t i = row - c0;
+      if (row >= c0 + w) {
+        const std::int32_t* rb = m.rows.data() + m.sn_row[sn];
+        i = w + (std::lower_bound(rb, rb + rc, row) - rb);
+      }
+      m.a_to_panel[static_cast<std::size_t>(p)] = m.panel_at[sn] + (col - c0) * (w + rc) + i;
+    }
+  }
+}
+
+bool BlockLdlt::NumericFactor() {
+  Impl& m = *impl_;
+  const std::size_t ns = m.sn_col.size() - 1;
+  double* panel = m.panel.data();
+  std::fill(m.panel.begin(), m.panel.end(), 0.0);
+  const double* v = m.a.valuePtr();
+  for (std::size_t p = 0; p < m.a_to_panel.size(); ++p) panel[m.a_to_panel[p]] = v[p];
+  std::fill(m.head.begin(), m.head.end(), -1);
+  std::int32_t* rel = m.rel.data();
+  double* scaled = m.scaled.data();
+  for (std::size_t s = 0; s < ns; ++s) {
+    const std::int32_t c0 = m.sn_col[s];
+    const std::int64_t w = m.sn_col[s + 1] - c0;
+    const std::int32_t* rs = m.rows.data() + m.sn_row[s];
+    const std::int64_t rc = m.sn_row[s + 1] - m.sn_row[s];
+    const std::int64_t ld = w + rc;
+    double* ps = panel + m.panel_at[s];
+    for (std::int64_t r = 0; r < rc; ++r) rel[rs[r]] = static_cast<std::int32_t>(w + r);
+    // Updates from the supernodes d whose rows reach into [c0, c0 + w), in list order.
+    for (std::int32_t d = m.head[s]; d >= 0;) {
+      const auto du = static_cast<std::size_t>(d);
+      const std::int32_t dnext = m.next[du];
+      const std::int32_t dc0 = m.sn_col[du];
+      const std::int64_t dw = m.sn_col[du + 1] - dc0;
+      const std::int32_t* rd = m.rows.data() + m.sn_row[du];
+      const std::int64_t drc = m.sn_row[du + 1] - m.sn_row[du];
+      const std::int64_t dld = dw + drc;
+      const double* pd = panel + m.panel_at[du];
+      const std::int64_t p0 = m.cursor[du];
+      std::int64_t q = p0;
+      while (q < drc && rd[q] < c0 + w) ++q;
+      // For each target column j (row rd[j] of d, inside s): scaled = D_d L_d(j, :), then
+      // subtract L_d(i, :) . scaled from every row i >= j of d.
+      for (std::int64_t j = p0; j < q; ++j) {
+        for (std::int64_t k = 0; k < dw; ++k)
+          scaled[k] = pd[k * dld + dw + j] * m.dvals[static_cast<std::size_t>(dc0 + k)];
+        // Column sweeps over d's contiguous panel columns (vectorisable), then one scatter.
+        double* sum = m.sums.data();
+        for (std::int64_t i = j; i < drc; ++i) sum[i] = 0;
+        for (std::int64_t k = 0; k < dw; ++k) {
+          const double* lk = pd + k * dld + dw;
+          const double sk = scaled[k];
+          for (std::int64_t i = j; i < drc; ++i) sum[i] += lk[i] * sk;
+        }
+        double* col = ps + (rd[j] - c0) * ld;
+        for (std::int64_t i = j; i < drc; ++i) {
+          const std::int32_t row = rd[i];
+          col[row < c0 + w ? row - c0 : rel[row]] -= sum[i];
+        }
+      }
+      m.cursor[du] = static_cast<std::int32_t>(q);
+      if (q < drc) {  // on to the supernode of its next row
+        const auto t = static_cast<std::size_t>(m.sn_of_col[static_cast<std::size_t>(rd[q])]);
+        m.next[du] = m.head[t];
+        m.head[t] = d;
+      }
+      d = dnext;
+    }
+    // Dense LDL^T of the panel (right-looking inside the supernode).
+    for (std::int64_t j = 0; j < w; ++j) {
+      double* cj = ps + j * ld;
+      const double dj = cj[j];
+      if (!(dj > 0) || !std::isfinite(dj)) return false;
+      m.dvals[static_cast<std::size_t>(c0 + j)] = dj;
+      const double inv = 1.0 / dj;
+      for (std::int64_t k = j + 1; k < w; ++k) {
+        const double lkj_d = cj[k];  // L(k, j) d_j
+        double* ck = ps + k * ld;
+        for (std::int64_t i = k; i < ld; ++i) ck[i] -= cj[i] * (lkj_d * inv);
+      }
+      for (std::int64_t i = j + 1; i < ld; ++i) cj[i] *= inv;
+    }
+    m.cursor[s] = 0;
+    if (rc > 0) {
+      const auto t = static_cast<std::size_t>(m.sn_of_col[static_cast<std::size_t>(rs[0])]);
+      m.next[s] = m.head[t];
+      m.head[t] = static_cast<std::int32_t>(s);
+    }
+    // Solve layout: T(i, k) at t[k w + i], B(r, k) at b[r w + k].
+    double* t = m.vals.data() + m.sn_val[s];
+    double* b = t + w * w;
+    for (std::int64_t k = 0; k < w; ++k) {
+      for (std::int64_t i = k + 1; i < w; ++i) t[k * w + i] = ps[k * ld + i];
+      for (std::int64_t r = 0; r < rc; ++r) b[r * w + k] = ps[k * ld + w + r];
+    }
+  }
+  for (std::size_t i = 0; i < m.dvals.size(); ++i) m.inv_d[i] = 1.0 / m.dvals[i];
+  return true;
 }
 
 bool BlockLdlt::Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_blocks) {
@@ -136,67 +322,8 @@ bool BlockLdlt::Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_bl
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) v[q[3 * r + c]] = b(r, c);
   }
-  m.ldlt.factorize(m.a);
-  ok_ = m.ldlt.info() == Eigen::Success;
-  if (!ok_) return false;
-  const auto& l = m.ldlt.matrixL().nestedExpression();
-  const Eigen::Index dim = m.a.rows();
-  const int* lp = l.outerIndexPtr();
-  const int* li = l.innerIndexPtr();
-  const double* lx = l.valuePtr();
-  m.nnz = lp[dim];
-  // Fundamental supernodes: column j + 1 continues the run of j when L(j + 1, j) is the first
-  // entry of column j and the patterns below agree (equal counts, nested by the elimination
-  // tree).
-  m.sn_col.clear();
-  m.sn_row.assign(1, 0);
-  m.sn_val.assign(1, 0);
-  m.rows.clear();
-  m.vals.clear();
-  std::size_t max_w = 1;
-  for (Eigen::Index c0 = 0; c0 < dim;) {
-    Eigen::Index c1 = c0 + 1;
-    while (c1 < dim && lp[c1] - lp[c1 - 1] == lp[c1 + 1] - lp[c1] + 1 && lp[c1] > lp[c1 - 1] &&
-           li[lp[c1 - 1]] == c1)
-      ++c1;
-    const auto w = static_cast<std::size_t>(c1 - c0);
-    max_w = std::max(max_w, w);
-    m.sn_col.push_back(static_cast<std::int32_t>(c0));
-    // Rows below the run: the pattern of its last column.
-    const int* rb = li + lp[c1 - 1];
-    const int* re = li + lp[c1];
-    m.rows.insert(m.rows.end(), rb, re);
-    const auto rcount = static_cast<std::size_t>(re - rb);
-    const std::size_t base = m.vals.size();
-    m.vals.resize(base + w * w + rcount * w, 0.0);
-    double* t = m.vals.data() + base;
-    double* b = t + w * w;
-    for (std::size_t k = 0; k < w; ++k) {
-      const Eigen::Index col = c0 + static_cast<Eigen::Index>(k);
-      int p = lp[col];
-      for (std::size_t i = k + 1; i < w; ++i, ++p) t[k * w + i] = lx[p];   // T(i, k)
-      for (std::size_t r = 0; r < rcount; ++r, ++p) b[r * w + k] = lx[p];  // B(r, k)
-    }
-    m.sn_row.push_back(static_cast<std::int64_t>(m.rows.size()));
-    m.sn_val.push_back(static_cast<std::int64_t>(m.vals.size()));
-    c0 = c1;
-  }
-  m.sn_col.push_back(static_cast<std::int32_t>(dim));
-  m.acc.assign(max_w, 0.0);
-  m.inv_d.resize(static_cast<std::size_t>(dim));
-  const Eigen::VectorXd& d = m.ldlt.vectorD();
-  for (Eigen::Index i = 0; i < dim; ++i) {
-    if (!(d[i] > 0)) {
-      ok_ = false;
-      return false;
-    }
-    m.inv_d[static_cast<std::size_t>(i)] = 1.0 / d[i];
-  }
-  const auto& p = m.ldlt.permutationP().indices();
-  m.perm.resize(static_cast<std::size_t>(dim));
-  for (Eigen::Index i = 0; i < dim; ++i)
-    m.perm[static_cast<std::size_t>(i)] = p.size() ? p[i] : static_cast<std::int32_t>(i);
-  return true;
+  ok_ = NumericFactor();
+  return ok_;
 }
 
 void BlockLdlt::Solve(double* x) const {

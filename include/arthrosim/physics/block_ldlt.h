@@ -39,6 +39,8 @@ class BlockLdlt {
   std::int64_t factor_nonzeros() const;
 
  private:
+  void Symbolic();       // L's pattern, supernodes, entry map (after the ordering)
+  bool NumericFactor();  // values of L and D from a's values
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::int32_t n_ = 0;
