@@ -203,6 +203,44 @@ TEST(ContactGeneration, RefitWorldEqualsFreshWorldAfterSteps) {
   EXPECT_EQ(world.rebuilds, 4);  // 2 soft + 2 bones, once: refit afterwards
 }
 
+// Tissue-bone searches are skipped for vertices still within a proven out-of-reach bound of an
+// earlier search: at every step of a slow wave (vertices moving 0.02-0.1 mm per step, so bounds
+// hold for several steps and then expire) the contacts equal a fresh world's, and the skip is
+// really used.
+TEST(ContactGeneration, TissueBoneOutOfReachBoundsNeverChangeContacts) {
+  const Model model = MakeBenchmarkModel();
+  State state = MakeInitialState(model);
+  std::vector<Points> rest;
+  for (const SoftBodyState& b : state.soft_bodies) rest.push_back(b.x);
+  CollisionParams params;
+  CollisionWorld world;
+  CollisionOutput out;
+  int bounded = 0, bone_contacts = 0;
+  for (int step = 0; step < 40; ++step) {
+    for (std::size_t b = 0; b < rest.size(); ++b) {
+      for (Eigen::Index i = 0; i < rest[b].cols(); ++i) {
+        state.soft_bodies[b].x(2, i) = rest[b](2, i) - 0.8 * std::sin(0.05 * step) +
+                                       0.1 * std::sin(0.3 * rest[b](0, i) + 0.2 * step);
+      }
+    }
+    Detect(model, state, state.tools, params, &world, &out);
+    CollisionWorld fresh;
+    CollisionOutput again;
+    Detect(model, state, state.tools, params, &fresh, &again);
+    ExpectSameContacts(out, again);
+    for (const auto& e : world.soft) {
+      for (const NearBoneCache& c : e.near_bone) {
+        for (double m : c.far_margin) bounded += m > 0;
+      }
+    }
+    for (ConstraintEnd::Kind k : out.obstacle_kind)
+      bone_contacts += k == ConstraintEnd::Kind::kBone;
+  }
+  std::printf("bounded vertex-steps %d, bone contacts %d\n", bounded, bone_contacts);
+  EXPECT_GT(bounded, 100);
+  EXPECT_GT(bone_contacts, 100);
+}
+
 TEST(ContactGeneration, ToolBoneReactionIsStiffnessTimesDepth) {
   Model model;
   model.bones.push_back(BoxBone(Vec3(-10, -10, -10), Vec3(10, 10, 0)));
