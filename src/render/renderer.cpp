@@ -136,7 +136,6 @@ struct Renderer::Impl {
   std::vector<std::size_t> order;  // draw order: near layers first so depth tests cull more
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;
-  std::vector<unsigned char> readback;
 
   void MakeCurrent(int w, int h) {
     if (w != buf_w || h != buf_h) {
@@ -482,15 +481,15 @@ void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
       break;
   }
 
-  // read back bottom-up RGBA, store top-down RGB
-  s.readback.resize(static_cast<std::size_t>(4) * w * h);
-  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, s.readback.data());
+  // OSMesa's colour buffer is our own `buffer` (bottom-up RGBA), complete after glFinish: no
+  // glReadPixels copy. Store top-down RGB.
+  glFinish();
   if (const GLenum err = glGetError(); err != GL_NO_ERROR) {
     throw RenderError("OpenGL error " + std::to_string(err) + " while rendering");
   }
   out->Resize(w, h);
   for (int y = 0; y < h; ++y) {
-    const unsigned char* src = s.readback.data() + static_cast<std::size_t>(4) * w * (h - 1 - y);
+    const unsigned char* src = s.buffer.data() + static_cast<std::size_t>(4) * w * (h - 1 - y);
     std::uint8_t* dst = out->At(0, y);
     for (int x = 0; x < w; ++x) {
       dst[3 * x] = src[4 * x];
