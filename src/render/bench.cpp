@@ -9,6 +9,8 @@
 #include <string>
 #include <utility>
 
+#include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "arthrosim/render/renderer.h"
@@ -39,9 +41,32 @@ State MakeBenchmarkState(const Model& model) {
   return state;
 }
 
+namespace {
+
+// CPU seconds of this process (all threads) and of its waited-for children.
+double ProcessCpuSeconds() {
+  timespec t{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+double ChildrenCpuSeconds() {
+  rusage u{};
+  ::getrusage(RUSAGE_CHILDREN, &u);
+  auto sec = [](const timeval& v) { return static_cast<double>(v.tv_sec) + 1e-6 * v.tv_usec; };
+  return sec(u.ru_utime) + sec(u.ru_stime);
+}
+
+}  // namespace
+
 double MeasureRenderFps(const Model& model, const State& state, int width, int height, int frames,
                         bool with_encoding) {
-  if (frames < 1) throw std::invalid_argument("MeasureRenderFps: frames must be >= 1");
+  return MeasureRender(model, state, width, height, frames, with_encoding).fps;
+}
+
+RenderThroughput MeasureRender(const Model& model, const State& state, int width, int height,
+                               int frames, bool with_encoding) {
+  if (frames < 1) throw std::invalid_argument("MeasureRender: frames must be >= 1");
   Renderer renderer;
   ViewSpec spec;
   spec.width = width;
@@ -57,27 +82,36 @@ double MeasureRenderFps(const Model& model, const State& state, int width, int h
   if (with_encoding) sink = std::make_unique<FfmpegSink>(path, width, height, 25.0);
   // wall-clock timing is the point here; this is benchmark code, not simulation
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = ProcessCpuSeconds(), child0 = ChildrenCpuSeconds();
   for (int i = 0; i < frames; ++i) {
     const Scene scene = BuildScene(model, state);
     renderer.Render(scene, spec, &image);
     if (sink) sink->Write(image);
   }
-  if (sink) sink->Close();
+  if (sink) sink->Close();  // waits for ffmpeg, so its CPU time is in RUSAGE_CHILDREN
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  RenderThroughput out;
+  out.fps = frames / seconds;
+  out.cpu_ms_per_frame = 1e3 * (ProcessCpuSeconds() - cpu0) / frames;
+  out.ffmpeg_ms_per_frame = 1e3 * (ChildrenCpuSeconds() - child0) / frames;
   std::error_code ec;
   std::filesystem::remove(path, ec);
-  return frames / seconds;
+  return out;
 }
 
 std::string RenderBenchReport(const Model& model, const State& state, int frames) {
   std::string out;
   for (const auto& [w, h] : {std::pair{640, 480}, std::pair{1280, 720}}) {
     const std::string size = std::to_string(w) + "x" + std::to_string(h);
-    char line[128];
-    std::snprintf(line, sizeof line, "render_fps_%s=%.1f\nvideo_fps_%s=%.1f\n", size.c_str(),
-                  MeasureRenderFps(model, state, w, h, frames, false), size.c_str(),
-                  MeasureRenderFps(model, state, w, h, frames, true));
+    const RenderThroughput r = MeasureRender(model, state, w, h, frames, false);
+    const RenderThroughput v = MeasureRender(model, state, w, h, frames, true);
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "render_fps_%s=%.1f\nrender_cpu_ms_%s=%.2f\nvideo_fps_%s=%.1f\n"
+                  "video_cpu_ms_%s=%.2f\nvideo_ffmpeg_cpu_ms_%s=%.2f\n",
+                  size.c_str(), r.fps, size.c_str(), r.cpu_ms_per_frame, size.c_str(), v.fps,
+                  size.c_str(), v.cpu_ms_per_frame, size.c_str(), v.ffmpeg_ms_per_frame);
     out += line;
   }
   return out;
