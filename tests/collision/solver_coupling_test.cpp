@@ -331,16 +331,17 @@ TEST(SolverCoupling, GraspedThreadDraggedAcrossAnotherNeverPassesThroughIt) {
     const double gap = ThreadGap(state.threads[0].x, state.threads[1].x);
     closest = std::min(closest, gap);
     pull = std::max(pull, state.tools[0].force_n.norm());
-    std::printf(
-        "  step %2d tool x %6.2f: gap %.4f mm (radii %.3f), suture far end (%.2f %.2f %.2f), "
-        "post middle x %.3f, tool force %.3f N\n",
-        step, x, gap, radii, state.threads[1].x(0, 10), state.threads[1].x(1, 10),
-        state.threads[1].x(2, 10), state.threads[0].x(0, 10), state.tools[0].force_n.norm());
+    if (step <= 10) {
+      std::printf(
+          "  step %2d tool x %6.2f: gap %.4f mm (radii %.3f), suture far end (%.2f %.2f %.2f), "
+          "post middle x %.3f, tool force %.3f N\n",
+          step, x, gap, radii, state.threads[1].x(0, 10), state.threads[1].x(1, 10),
+          state.threads[1].x(2, 10), state.threads[0].x(0, 10), state.tools[0].force_n.norm());
+    }
+    EXPECT_GT(gap, radii - 0.05) << "step " << step;
   }
-  EXPECT_GT(gap, radii - 0.05) << "step " << step;
-}
-EXPECT_LT(closest, radii + 0.2);  // they did meet
-EXPECT_GT(pull, 0.05);            // and the post held the suture back against the grasp
+  EXPECT_LT(closest, radii + 0.2);  // they did meet
+  EXPECT_GT(pull, 0.05);            // and the post held the suture back against the grasp
 }
 
 }  // namespace
