@@ -772,7 +772,7 @@ void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
   for (std::size_t vi = 0; vi < s.positions.size(); ++vi) {
     const std::int32_t v = static_cast<std::int32_t>(vi);
     const std::int32_t node = s.surface.vertices[v];
-    if (B->SoftFixed(body, node)) continue;
+    if (s.fixed[vi]) continue;
     const Vec3& p = s.positions[v];
     // Still within the bound of an earlier search that found it clearly out of contact: the
     // same search now would too (no contact; the candidate cache is only a shortcut).
@@ -852,7 +852,6 @@ std::vector<Sweep> MakeSweeps(const Model& model, const ToolState& prev, const T
 }  // namespace
 
 void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
-  (void)model;
   world->soft.resize(state.soft_bodies.size());
   for (std::size_t b = 0; b < state.soft_bodies.size(); ++b) {
     const SoftBodyState& sb = state.soft_bodies[b];
@@ -865,6 +864,13 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
       e.bvh.Build(e.positions, e.surface.local_tris);
       e.built = true;
       e.near_bone.clear();
+      e.fixed.assign(e.surface.vertices.size(), 0);
+      if (b < model.soft_bodies.size()) {
+        const auto& f = model.soft_bodies[b].fixed_nodes;
+        for (std::size_t v = 0; v < e.surface.vertices.size(); ++v) {
+          e.fixed[v] = std::binary_search(f.begin(), f.end(), e.surface.vertices[v]) ? 1 : 0;
+        }
+      }
       ++world->rebuilds;
     } else {
       FillPositions(sb.x, e.surface.vertices, &e.positions);
@@ -985,8 +991,35 @@ void Detect(const Model& model, const State& state,
     }
     return false;
   };
+  // The leading fields (tool, target, body, obstacle kind, obstacle, first node) packed into one
+  // integer whose order is theirs, so most comparisons are one integer compare; equal keys fall
+  // back to the full comparison (same total order, so the same sorted list). Only used when
+  // every field fits its bits.
+  thread_local std::vector<std::uint64_t> key;
+  key.resize(B.contacts.size());
+  bool packed = true;
+  for (std::size_t i = 0; i < B.contacts.size() && packed; ++i) {
+    const PointContact& c = B.contacts[i];
+    const std::uint64_t slot = static_cast<std::uint64_t>(c.tool_slot + 1);
+    const std::uint64_t body = static_cast<std::uint64_t>(c.index);
+    const std::uint64_t kind = static_cast<std::uint64_t>(B.kinds[i]);
+    const std::uint64_t obst = static_cast<std::uint64_t>(c.obstacle_id + 1);
+    const std::uint64_t node = static_cast<std::uint64_t>(c.nodes[0] + 1);
+    packed = c.tool_slot >= -1 && slot < 4 && c.index >= 0 && body < 1024 && kind < 8 &&
+             c.obstacle_id >= -1 && obst < 1024 && c.nodes[0] >= -1 && node < (1u << 21);
+    key[i] = slot << 62 | static_cast<std::uint64_t>(c.target) << 61 | body << 51 | kind << 48 |
+             obst << 38 | node << 17;
+  }
+  auto keyed_less = [&](std::size_t i, std::size_t j) {
+    if (key[i] != key[j]) return key[i] < key[j];
+    return less(i, j);
+  };
   // Contacts are mostly created in order already: sort only when needed.
-  if (!std::is_sorted(order.begin(), order.end(), less)) {
+  if (packed) {
+    if (!std::is_sorted(order.begin(), order.end(), keyed_less)) {
+      std::stable_sort(order.begin(), order.end(), keyed_less);
+    }
+  } else if (!std::is_sorted(order.begin(), order.end(), less)) {
     std::stable_sort(order.begin(), order.end(), less);
   }
   out->contacts.clear();

@@ -72,6 +72,7 @@ struct CollisionWorld {
     TriangleBvh bvh;
     bool built = false;
     std::vector<NearBoneCache> near_bone;  ///< per bone, per local surface vertex
+    std::vector<std::uint8_t> fixed;       ///< per local surface vertex: a Model fixed node
   };
   struct BoneEntry {
     mesh::TriMesh surface;  ///< copy the tree was built for
