@@ -25,6 +25,8 @@ constexpr float kScopeAmbient = 0.05f;
 constexpr float kOverviewAmbient = 0.18f;
 // The rectilinear pass cannot reach 90 deg off axis; wider lenses are clamped.
 constexpr double kMaxHalfFovRad = 80.0 * 3.14159265358979323846 / 180.0;
+// Sides of the polygons that bound the image circle (lens pass) and the texels it samples.
+constexpr int kFanSides = 64;
 
 Mat4 LookAt(const Vec3& eye, const Vec3& forward, const Vec3& up) {
   const Vec3 f = forward.normalized();
@@ -124,6 +126,22 @@ struct Renderer::Impl {
   struct {
     GLint tex, center, radius, theta_max, tan_max, k;
   } pu{};
+  GLuint mask_prog = 0;
+  struct FanUniforms {
+    GLint center, scale, inner, outer, sides, depth;
+  } post_fan{}, mask_fan{};
+
+  // Sets the polygon of kPostVertex (program `prog` must be in use); centre in NDC, scale in
+  // NDC per radius unit, outer = 0 for a fan.
+  void SetFan(const FanUniforms& f, double cx, double cy, double sx, double sy, double inner,
+              double outer, double depth) const {
+    gl.Uniform2f(f.center, float(cx), float(cy));
+    gl.Uniform2f(f.scale, float(sx), float(sy));
+    gl.Uniform1f(f.inner, float(inner));
+    gl.Uniform1f(f.outer, float(outer));
+    gl.Uniform1i(f.sides, kFanSides);
+    gl.Uniform1f(f.depth, float(depth));
+  }
   std::unique_ptr<Font> font;
   // one draw range per scene mesh in the shared buffers
   struct Range {
@@ -290,6 +308,18 @@ struct Renderer::Impl {
     glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
+    // The lens pass samples only the inscribed disc of the texture (bilinear: one texel
+    // beyond). Depth 0 outside a polygon around it (2 texels of margin) makes every mesh
+    // fragment there fail the depth test before shading; the texels read are unchanged.
+    gl.UseProgram(mask_prog);
+    glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    glDepthFunc(GL_ALWAYS);
+    SetFan(mask_fan, 0, 0, 2.0 / tex, 2.0 / tex,
+           (0.5 * tex + 2.0) / std::cos(3.14159265358979323846 / kFanSides), tex, -1.0);
+    gl.BindVertexArray(post_vao);
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 2 * kFanSides + 2);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glDepthFunc(GL_LESS);
     const double near = scene.scope.near_mm;
     DrawMeshes(scene, view_proj, f.eye, true, f.forward, spec.light_ref_mm,
                near * std::sqrt(1.0 + 2.0 * tan_max * tan_max));
@@ -308,12 +338,12 @@ struct Renderer::Impl {
     gl.Uniform1f(pu.tan_max, float(tan_max));
     gl.Uniform1f(pu.k, float(spec.distortion));
     gl.BindVertexArray(post_vao);
-    // only the circle's bounding square: the rest is already black
-    const int cx = vp.x + vp.w / 2, cy = vp.y + vp.h / 2, half_box = diameter / 2 + 2;
-    glScissor(cx - half_box, cy - half_box, 2 * half_box, 2 * half_box);
-    glEnable(GL_SCISSOR_TEST);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    glDisable(GL_SCISSOR_TEST);
+    // only a polygon around the image circle (1.5 px beyond its anti-aliased rim): the rest is
+    // already black
+    const double px = 0.5 * diameter + 1.5;
+    SetFan(post_fan, 0, 0, 2.0 / vp.w, 2.0 / vp.h,
+           px / std::cos(3.14159265358979323846 / kFanSides), 0, 0);
+    glDrawArrays(GL_TRIANGLE_FAN, 0, kFanSides + 2);
   }
 
   void RenderOverview(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
@@ -388,6 +418,13 @@ Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>(
                u(prog, "u_spot"),      u(prog, "u_ambient")};
   }
   s.post_prog = Link(gl, shaders::kPostVertex, shaders::kPostFragment);
+  s.mask_prog = Link(gl, shaders::kPostVertex, shaders::kMaskFragment);
+  auto fan = [&](GLuint p) {
+    return Impl::FanUniforms{u(p, "u_fan_center"), u(p, "u_fan_scale"), u(p, "u_fan_inner"),
+                             u(p, "u_fan_outer"),  u(p, "u_fan_sides"), u(p, "u_fan_depth")};
+  };
+  s.post_fan = fan(s.post_prog);
+  s.mask_fan = fan(s.mask_prog);
   s.pu = {u(s.post_prog, "u_tex"),       u(s.post_prog, "u_center"),  u(s.post_prog, "u_radius"),
           u(s.post_prog, "u_theta_max"), u(s.post_prog, "u_tan_max"), u(s.post_prog, "u_k")};
 
@@ -422,6 +459,7 @@ Renderer::~Renderer() {
     if (gl.DeleteProgram != nullptr) {
       for (const GLuint prog : s.mesh_prog) gl.DeleteProgram(prog);
       gl.DeleteProgram(s.post_prog);
+      gl.DeleteProgram(s.mask_prog);
       gl.DeleteVertexArrays(1, &s.vao);
       gl.DeleteVertexArrays(1, &s.post_vao);
       gl.DeleteBuffers(1, &s.vbo);

@@ -106,12 +106,36 @@ void main() {
 }
 )";
 
-// Full-screen triangle without vertex data.
+// Regular polygons without vertex data, around u_fan_center (NDC) with u_fan_scale NDC per
+// radius unit. Fan (u_fan_outer = 0; sides + 2 vertices): vertex 0 the centre, then the corners
+// at radius u_fan_inner. Ring (triangle strip, 2 sides + 2 vertices): alternately radius
+// u_fan_inner and u_fan_outer, i.e. everything between the polygon and the outer one.
 inline constexpr const char* kPostVertex = R"(#version 330 core
+uniform vec2 u_fan_center;
+uniform vec2 u_fan_scale;
+uniform float u_fan_inner;
+uniform float u_fan_outer;
+uniform int u_fan_sides;
+uniform float u_fan_depth;
 void main() {
-  vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
-  gl_Position = vec4(p, 0.0, 1.0);
+  int corner;
+  float r;
+  if (u_fan_outer > 0.0) {
+    corner = gl_VertexID / 2;
+    r = gl_VertexID % 2 == 0 ? u_fan_inner : u_fan_outer;
+  } else {
+    corner = gl_VertexID - 1;
+    r = gl_VertexID == 0 ? 0.0 : u_fan_inner;
+  }
+  float a = 6.2831853 * float(corner % u_fan_sides) / float(u_fan_sides);
+  gl_Position = vec4(u_fan_center + r * u_fan_scale * vec2(cos(a), sin(a)), u_fan_depth, 1.0);
 }
+)";
+
+// Depth-only pass (colour writes off).
+inline constexpr const char* kMaskFragment = R"(#version 330 core
+out vec4 o_color;
+void main() { o_color = vec4(0.0); }
 )";
 
 // Scope optics: the rectilinear render (half-angle u_theta_max at the texture edge) is remapped
