@@ -68,8 +68,8 @@ std::string FindProgram(const std::string& program) {
   std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
   std::string dir;
   while (std::getline(dirs, dir, ':')) {
-    if (dir.empty()) dir = ".";
-    std::string full = dir;  // appended: GCC 12 -Wrestrict false positive on operator+
+    if (dir.empty()) dir.assign(1, '.');  // not = ".": GCC 12 -Wrestrict false positive
+    std::string full = dir;               // appended: GCC 12 -Wrestrict false positive on operator+
     full += '/';
     full += program;
     struct stat st {};

@@ -16,7 +16,7 @@ double MsSince(Clock::time_point t0) {
 }
 
 // Events describe one step only.
-void BeginStep(State* state, Workspace* ws) { state->events.clear(); }
+void BeginStep(State* state) { state->events.clear(); }
 
 // Collision: contacts of tools, tissue, thread and bone at the start of the step, with the
 // tool sweep from last step's pose (no tunnelling).
@@ -88,7 +88,7 @@ void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
 
 void Step(const Model& model, const InputFrame& input, State* state, Workspace* ws) {
   const auto t0 = Clock::now();
-  BeginStep(state, ws);
+  BeginStep(state);
   const std::array<ToolState, kToolSlots> prev_tools = state->tools;
   ApplyToolCommands(model, input, state);
   ws->timings.kinematics_ms = MsSince(t0);
