@@ -1,5 +1,7 @@
 #include "arthrosim/collision/proximity.h"
 
+#include "arthrosim/mesh/segment_closest.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -114,32 +116,9 @@ ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
 }
 
 ClosestPair SegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
-  const Vec3 d1 = p1 - p0, d2 = q1 - q0, r0 = p0 - q0;
-  const double a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r0);
-  double s = 0, t = 0;
-  if (a <= kTinyLength2 && e <= kTinyLength2) {
-    s = t = 0;
-  } else if (a <= kTinyLength2) {
-    t = Clamp01(f / e);
-  } else {
-    const double c = d1.dot(r0);
-    if (e <= kTinyLength2) {
-      s = Clamp01(-c / a);
-    } else {
-      const double b = d1.dot(d2);
-      const double denom = a * e - b * b;
-      // Parallel (relative test): any s works, take the start and fix t, then s, below.
-      s = denom > 1e-12 * a * e ? Clamp01((b * f - c * e) / denom) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0) {
-        t = 0;
-        s = Clamp01(-c / a);
-      } else if (t > 1) {
-        t = 1;
-        s = Clamp01((b - c) / a);
-      }
-    }
-  }
+  // Parallel (relative test): any s works, take the start and fix t, then s.
+  const mesh::SegmentParams st = mesh::ClosestSegmentParams(p0, p1, q0, q1, kTinyLength2, 1e-12);
+  const double s = st.s, t = st.t;
   ClosestPair r;
   r.wa = {1 - s, s, 0};
   r.wb = {1 - t, t, 0};

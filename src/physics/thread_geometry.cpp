@@ -1,5 +1,7 @@
 #include "arthrosim/physics/thread_geometry.h"
 
+#include "arthrosim/mesh/segment_closest.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,8 +9,6 @@
 namespace arthrosim::physics {
 
 namespace {
-
-double Clamp01(double v) { return std::min(1.0, std::max(0.0, v)); }
 
 // Cubic c0 + c1 t + c2 t^2 + c3 t^3.
 double EvalCubic(const std::array<double, 4>& c, double t) {
@@ -75,32 +75,9 @@ double DistanceAt(const SweptSegments& m, double t) {
 
 SegmentClosest ClosestPointsSegments(const Vec3& a0, const Vec3& a1, const Vec3& b0,
                                      const Vec3& b1) {
-  const Vec3 d1 = a1 - a0, d2 = b1 - b0, r = a0 - b0;
-  const double a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r);
-  const double tiny = 1e-30;
-  double s = 0, t = 0;
-  if (a <= tiny && e <= tiny) {
-    s = t = 0;
-  } else if (a <= tiny) {
-    t = Clamp01(f / e);
-  } else {
-    const double c = d1.dot(r);
-    if (e <= tiny) {
-      s = Clamp01(-c / a);
-    } else {
-      const double b = d1.dot(d2);
-      const double denom = a * e - b * b;  // >= 0; 0 for parallel segments
-      s = denom > 1e-14 * a * e ? Clamp01((b * f - c * e) / denom) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0) {
-        t = 0;
-        s = Clamp01(-c / a);
-      } else if (t > 1) {
-        t = 1;
-        s = Clamp01((b - c) / a);
-      }
-    }
-  }
+  const mesh::SegmentParams st = mesh::ClosestSegmentParams(a0, a1, b0, b1, 1e-30, 1e-14);
+  const double s = st.s, t = st.t;
+  const Vec3 d1 = a1 - a0, d2 = b1 - b0;
   SegmentClosest out;
   out.s = s;
   out.t = t;
