@@ -220,7 +220,7 @@ CollisionBenchResult BenchmarkCollision(
   }
   const double dt = 0.02, speed = 100.0;
   const double half = std::max(0.3 * size.y(), 1.0);
-  CollisionParams params;
+  const CollisionParams params = ParamsFromModel(model.contact);
   CollisionWorld world;
   CollisionOutput out;
   std::vector<double> ms;

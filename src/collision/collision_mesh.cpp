@@ -132,7 +132,8 @@ void TriangleBvh::QueryPairs(const TriangleBvh& other, double margin,
   if (empty() || other.empty()) return;
   const std::size_t first = out->size();
   auto size = [](const Box& b) { return (b.hi - b.lo).squaredNorm(); };
-  std::vector<std::pair<int, int>> stack{{0, 0}};
+  thread_local std::vector<std::pair<int, int>> stack;  // no allocation once warm
+  stack.assign(1, {0, 0});
   while (!stack.empty()) {
     const auto [i, j] = stack.back();
     stack.pop_back();

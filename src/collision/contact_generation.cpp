@@ -15,6 +15,13 @@ using physics::PointContact;
 // normal then comes from the surface instead.
 constexpr double kMinDirection = 1e-9;
 
+// Extra search radius (mm) beyond the contact reach of the soft-soft and bone tip-soft searches:
+// what a point found that far out may move (with the surface's drift) before it is searched again.
+constexpr double kFarSlack = 2.0;
+
+// Rounding allowance (mm) of the out-of-reach bounds: distances are computed to ~1e-12 mm.
+constexpr double kCertSlack = 1e-6;
+
 Vec3 SafeNormalized(const Vec3& v, const Vec3& fallback) {
   const double n = v.norm();
   return n > kMinDirection ? Vec3(v / n) : fallback;
@@ -757,9 +764,6 @@ bool ClosedSurface(const std::vector<mesh::Tri>& tris) {
   return !edges.empty();
 }
 
-// Rounding allowance (mm) of the out-of-contact bound: distances are computed to ~1e-12 mm.
-constexpr double kCertSlack = 1e-6;
-
 void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
                 CollisionWorld::BoneEntry& g) {
   const CollisionParams& P = B->params;
@@ -806,6 +810,252 @@ void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
     c.stiffness_n_per_mm = P.bone_stiffness_n_per_mm;
     c.obstacle_id = bone;
     B->Add(c, Kind::kBone);
+  }
+}
+
+// ---- soft tissue against soft tissue (different bodies) ------------------------------------
+
+// Surface vertices of body a near the surface of body b: contact on both sides, as for a thread
+// on tissue (vertex of a along +n, the nearest point of b's triangle along -n; n out of b).
+// Called for both orders of a pair, so each side's vertices meet the other's triangles. Joined
+// bodies: vertices near the join at rest and triangles touching a joined node are left out (the
+// interface is inside the merged body).
+void TissueTissue(Builder* B, int a, CollisionWorld::SoftEntry& ea, int b,
+                  const CollisionWorld::SoftEntry& eb) {
+  const CollisionParams& P = B->params;
+  if (ea.bvh.empty() || eb.bvh.empty()) return;
+  const double reach = std::max(P.alarm_distance_mm, P.max_depth_mm);
+  const Box bounds = eb.bvh.Bounds();
+  if (!ea.bvh.Bounds().Inflated(reach).Overlaps(bounds)) return;
+  const std::vector<std::uint8_t>* skip_v =
+      static_cast<std::size_t>(b) < ea.join_vertex.size() && !ea.join_vertex[b].empty()
+          ? &ea.join_vertex[b]
+          : nullptr;
+  const std::vector<std::uint8_t>* skip_t =
+      static_cast<std::size_t>(a) < eb.join_tri.size() && !eb.join_tri[a].empty() ? &eb.join_tri[a]
+                                                                                  : nullptr;
+  FarBounds& far = ea.far_soft[b];
+  far.Reset(ea.version, eb.version, ea.positions.size());
+  // Searched out to `wide`: a vertex found farther than reach keeps the difference as a bound.
+  const double wide = reach + kFarSlack;
+  thread_local std::vector<std::int32_t> cand;
+  for (std::size_t vi = 0; vi < ea.positions.size(); ++vi) {
+    if (skip_v != nullptr && (*skip_v)[vi]) continue;
+    const Vec3& p = ea.positions[vi];
+    if (far.Holds(vi, p, eb.drift_mm)) continue;
+    far.margin[vi] = -1;
+    // Lower bound of the distance to b's surface: the searched box, or the nearest triangle.
+    double lower = wide;
+    Nearest n;
+    if (NearBoxes(Box{p, p}, wide, bounds)) {
+      cand.clear();
+      eb.bvh.Query(Box{p.array() - wide, p.array() + wide}, &cand);
+      if (skip_t != nullptr) {
+        cand.erase(std::remove_if(cand.begin(), cand.end(),
+                                  [&](std::int32_t t) { return (*skip_t)[t] != 0; }),
+                   cand.end());
+      }
+      n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, eb.bvh, eb.positions,
+                           eb.surface.local_tris);
+      if (n.found) lower = std::min(lower, n.dist);
+    } else {
+      lower = std::max(wide, std::sqrt(BoxDist2(Box{p, p}, bounds)));
+    }
+    if (lower >= reach) {  // |signed distance| >= reach: no contact either side of the surface
+      far.at[vi] = p;
+      far.margin[vi] = lower - reach - kCertSlack;
+      far.drift0[vi] = eb.drift_mm;
+      continue;
+    }
+    const double sd = n.Signed();
+    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
+    const Vec3 normal = sd > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+    // Both sides move: each plane is half-way, so that two stiff responses meet at the skin
+    // distance instead of each jumping to the other's old place (which overshoots by the
+    // penetration and rings). A side that cannot move (all fixed) leaves the whole gap to the
+    // other.
+    const mesh::Tri& g = eb.surface.tris[n.tri];
+    const bool a_moves = !ea.fixed[vi];
+    const bool b_moves = !(B->SoftFixed(b, g[0]) && B->SoftFixed(b, g[1]) && B->SoftFixed(b, g[2]));
+    const double ha = normal.dot(n.pair.pa), hb = normal.dot(n.pair.pb);
+    const double mid = 0.5 * (ha + hb), skin = P.contact_distance_mm;
+    if (a_moves) {
+      PointContact c;
+      c.target = PointContact::Target::kSoftBody;
+      c.index = a;
+      c.nodes = {ea.surface.vertices[vi], -1, -1, -1};
+      c.weights = {1, 0, 0, 0};
+      c.normal = normal;
+      c.offset_mm = b_moves ? mid + 0.5 * skin : hb + skin;
+      c.stiffness_n_per_mm = P.tissue_tissue_stiffness_n_per_mm;
+      c.obstacle_id = b;
+      B->Add(c, Kind::kSoftBody);
+    }
+    if (b_moves) {
+      PointContact t;
+      t.target = PointContact::Target::kSoftBody;
+      t.index = b;
+      t.nodes = {g[0], g[1], g[2], -1};
+      t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
+      t.normal = -normal;
+      t.offset_mm = a_moves ? -mid + 0.5 * skin : -ha + skin;
+      t.stiffness_n_per_mm = P.tissue_tissue_stiffness_n_per_mm;
+      t.obstacle_id = a;
+      B->Add(t, Kind::kSoftBody);
+    }
+  }
+}
+
+// ---- salient bone vertices against soft triangles ---------------------------------------------
+
+// A bone corner (spur tip) near or inside a soft surface whose nearest soft point is inside a
+// triangle or on an edge (at a soft vertex, tissue-bone already holds it): that soft point is
+// pushed away from the corner, to contact_distance beyond it along the soft surface normal.
+void BoneTipTissue(Builder* B, int body, const CollisionWorld::SoftEntry& s, int bone,
+                   CollisionWorld::BoneEntry& g) {
+  const CollisionParams& P = B->params;
+  if (s.bvh.empty() || g.salient.empty()) return;
+  const double reach = std::max(P.alarm_distance_mm, P.max_depth_mm);
+  const double wide = reach + kFarSlack;
+  const Box bounds = s.bvh.Bounds();
+  FarBounds& far = g.far_soft[body];
+  far.Reset(g.version, s.version, g.salient.size());
+  thread_local std::vector<std::int32_t> cand;
+  for (std::size_t i = 0; i < g.salient.size(); ++i) {
+    const Vec3& p = g.positions[g.salient[i]];
+    if (far.Holds(i, p, s.drift_mm)) continue;
+    far.margin[i] = -1;
+    double lower = wide;
+    Nearest n;
+    if (NearBoxes(Box{p, p}, wide, bounds)) {
+      cand.clear();
+      s.bvh.Query(Box{p.array() - wide, p.array() + wide}, &cand);
+      n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, s.bvh, s.positions,
+                           s.surface.local_tris);
+      if (n.found) lower = std::min(lower, n.dist);
+    } else {
+      lower = std::max(wide, std::sqrt(BoxDist2(Box{p, p}, bounds)));
+    }
+    if (lower >= reach) {
+      far.at[i] = p;
+      far.margin[i] = lower - reach - kCertSlack;
+      far.drift0[i] = s.drift_mm;
+      continue;
+    }
+    const double sd = n.Signed();  // of the bone corner from the soft surface
+    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
+    const auto& w = n.pair.wb;
+    if ((w[0] <= 0) + (w[1] <= 0) + (w[2] <= 0) >= 2) continue;  // at a soft vertex
+    const mesh::Tri& t = s.surface.tris[n.tri];
+    if (B->SoftFixed(body, t[0]) && B->SoftFixed(body, t[1]) && B->SoftFixed(body, t[2])) continue;
+    // n: out of the tissue toward the corner; the tissue point must stay behind the corner.
+    const Vec3 normal = sd > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
+    PointContact c;
+    c.target = PointContact::Target::kSoftBody;
+    c.index = body;
+    c.nodes = {t[0], t[1], t[2], -1};
+    c.weights = {w[0], w[1], w[2], 0};
+    c.normal = -normal;
+    c.offset_mm = -normal.dot(p) + P.contact_distance_mm;
+    c.stiffness_n_per_mm = P.bone_stiffness_n_per_mm;
+    c.obstacle_id = bone;
+    B->Add(c, Kind::kBone);
+  }
+}
+
+// A bone vertex is salient when it sticks out of its neighbours' plane at a corner sharper than
+// kSalientDeg between the vertex normal and an adjacent face normal: a smooth tessellated
+// surface (the humeral head: ~4 degrees between faces) has none, a spur tip does. Below that,
+// a tissue triangle lying on the bone is at most a sagitta L^2 / 8R away, under the skin.
+constexpr double kSalientDeg = 20.0;
+
+std::vector<std::int32_t> SalientVertices(const Surface& s, const std::vector<Vec3>& p) {
+  std::vector<std::int32_t> out;
+  const double cos_lim = std::cos(kSalientDeg * 3.14159265358979323846 / 180.0);
+  for (std::size_t vi = 0; vi < p.size(); ++vi) {
+    const std::int32_t v = static_cast<std::int32_t>(vi);
+    const Vec3 vn = VertexNormal(s, p, v);
+    Vec3 ring = Vec3::Zero();
+    int count = 0;
+    bool sharp = false;
+    for (std::int32_t k = s.vertex_tri_start[v]; k < s.vertex_tri_start[v + 1]; ++k) {
+      const mesh::Tri& t = s.local_tris[s.vertex_tris[k]];
+      if (FaceNormal(p, t).dot(vn) < cos_lim) sharp = true;
+      for (std::int32_t u : t) {
+        if (u == v) continue;
+        ring += p[u];
+        ++count;
+      }
+    }
+    // Convex: the vertex lies outside its neighbours' mean (a crease or pit cannot poke).
+    if (sharp && count > 0 && vn.dot(p[v] - ring / count) > 0) out.push_back(v);
+  }
+  return out;
+}
+
+// Join flags of body b's surface against every soft body joined to it (CollisionWorld::SoftEntry
+// join_vertex / join_tri): joined nodes are those coincident at rest within the join tolerance
+// (as physics merges them); vertices within `band` mm of one at rest are near the join.
+void JoinFlags(const Model& model, const State& state, std::size_t b, double band,
+               CollisionWorld::SoftEntry* e) {
+  const std::size_t nb = state.soft_bodies.size();
+  e->join_vertex.assign(nb, {});
+  e->join_tri.assign(nb, {});
+  if (b >= model.soft_bodies.size()) return;
+  const Points& xa = model.soft_bodies[b].rest_mesh.nodes;
+  for (const Join& join : model.joins) {
+    const int ia = model.FindSoftBody(join.body_a), ib = model.FindSoftBody(join.body_b);
+    if (ia < 0 || ib < 0 || ia == ib) continue;
+    const int other =
+        static_cast<std::size_t>(ia) == b ? ib : (static_cast<std::size_t>(ib) == b ? ia : -1);
+    if (other < 0 || static_cast<std::size_t>(other) >= nb) continue;
+    const Points& xo = model.soft_bodies[other].rest_mesh.nodes;
+    // Joined nodes of b: coincident with a node of `other` (sorted by x, then a window).
+    std::vector<std::pair<double, std::int32_t>> sorted;
+    sorted.reserve(static_cast<std::size_t>(xo.cols()));
+    for (Eigen::Index k = 0; k < xo.cols(); ++k)
+      sorted.emplace_back(xo(0, k), static_cast<std::int32_t>(k));
+    std::sort(sorted.begin(), sorted.end());
+    const double tol = join.tolerance_mm;
+    std::vector<std::uint8_t> joined(static_cast<std::size_t>(xa.cols()), 0);
+    std::vector<Vec3> joined_at;
+    for (Eigen::Index i = 0; i < xa.cols(); ++i) {
+      const Vec3 p = xa.col(i);
+      auto it = std::lower_bound(sorted.begin(), sorted.end(),
+                                 std::make_pair(p.x() - tol, std::int32_t{-1}));
+      for (; it != sorted.end() && it->first <= p.x() + tol; ++it) {
+        if ((Vec3(xo.col(it->second)) - p).norm() <= tol) {
+          joined[static_cast<std::size_t>(i)] = 1;
+          joined_at.push_back(p);
+          break;
+        }
+      }
+    }
+    if (joined_at.empty()) continue;
+    auto is_joined = [&](std::int32_t node) {
+      return node >= 0 && node < static_cast<std::int32_t>(joined.size()) && joined[node] != 0;
+    };
+    std::vector<std::uint8_t>& jv = e->join_vertex[other];
+    jv.assign(e->surface.vertices.size(), 0);
+    const Points& rest = state.soft_bodies[b].x_rest;
+    for (std::size_t v = 0; v < jv.size(); ++v) {
+      const std::int32_t node = e->surface.vertices[v];
+      const Vec3 p = node < xa.cols()
+                         ? Vec3(xa.col(node))
+                         : (node < rest.cols() ? Vec3(rest.col(node)) : Vec3(e->positions[v]));
+      for (const Vec3& q : joined_at) {
+        if ((p - q).squaredNorm() < band * band) {
+          jv[v] = 1;
+          break;
+        }
+      }
+    }
+    std::vector<std::uint8_t>& jt = e->join_tri[other];
+    jt.assign(e->surface.tris.size(), 0);
+    for (std::size_t t = 0; t < jt.size(); ++t) {
+      const mesh::Tri& g = e->surface.tris[t];
+      jt[t] = is_joined(g[0]) || is_joined(g[1]) || is_joined(g[2]) ? 1 : 0;
+    }
   }
 }
 
@@ -871,9 +1121,19 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
           e.fixed[v] = std::binary_search(f.begin(), f.end(), e.surface.vertices[v]) ? 1 : 0;
         }
       }
+      JoinFlags(model, state, b, model.contact.alarm_distance_mm + model.contact.max_depth_mm, &e);
+      ++e.version;
+      e.drift_mm = 0;
       ++world->rebuilds;
     } else {
-      FillPositions(sb.x, e.surface.vertices, &e.positions);
+      // Refit, and the surface's drift (largest vertex move) for the out-of-reach bounds.
+      double move2 = 0;
+      for (std::size_t i = 0; i < e.surface.vertices.size(); ++i) {
+        const Vec3 q = sb.x.col(e.surface.vertices[i]);
+        move2 = std::max(move2, (q - e.positions[i]).squaredNorm());
+        e.positions[i] = q;
+      }
+      e.drift_mm += std::sqrt(move2);
       e.bvh.Refit(e.positions);
     }
   }
@@ -895,11 +1155,16 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
     FillPositions(m.nodes, e.indexed.vertices, &e.positions);
     e.bvh.Build(e.positions, e.indexed.local_tris);
     e.closed = ClosedSurface(e.indexed.tris);
+    e.salient = SalientVertices(e.indexed, e.positions);
     e.built = true;
     ++e.version;
     ++world->rebuilds;
   }
-  for (CollisionWorld::SoftEntry& e : world->soft) e.near_bone.resize(world->bones.size());
+  for (CollisionWorld::SoftEntry& e : world->soft) {
+    e.near_bone.resize(world->bones.size());
+    e.far_soft.resize(world->soft.size());
+  }
+  for (CollisionWorld::BoneEntry& e : world->bones) e.far_soft.resize(world->soft.size());
   world->threads.resize(state.threads.size());
   for (CollisionWorld::ThreadEntry& e : world->threads) e.near_bone.resize(world->bones.size());
 }
@@ -963,6 +1228,20 @@ void Detect(const Model& model, const State& state,
   for (std::size_t b = 0; b < world->soft.size(); ++b) {
     for (std::size_t g = 0; g < world->bones.size(); ++g) {
       TissueBone(&B, static_cast<int>(b), world->soft[b], static_cast<int>(g), world->bones[g]);
+      if (params.bone_tip_contacts) {
+        BoneTipTissue(&B, static_cast<int>(b), world->soft[b], static_cast<int>(g),
+                      world->bones[g]);
+      }
+    }
+  }
+  if (params.tissue_tissue_contacts) {
+    for (std::size_t a = 0; a < world->soft.size(); ++a) {
+      for (std::size_t b = 0; b < world->soft.size(); ++b) {
+        if (a != b) {
+          TissueTissue(&B, static_cast<int>(a), world->soft[a], static_cast<int>(b),
+                       world->soft[b]);
+        }
+      }
     }
   }
   // Creation order never matters: sort by (tool, target, body, obstacle, feature) and, for
@@ -1028,6 +1307,23 @@ void Detect(const Model& model, const State& state,
     out->contacts.push_back(B.contacts[i]);
     out->obstacle_kind.push_back(B.kinds[i]);
   }
+}
+
+CollisionParams ParamsFromModel(const ContactOptions& c) {
+  CollisionParams p;
+  p.alarm_distance_mm = c.alarm_distance_mm;
+  p.contact_distance_mm = c.contact_distance_mm;
+  p.max_depth_mm = c.max_depth_mm;
+  p.sweep_fraction = c.sweep_fraction;
+  p.max_substeps = c.max_substeps;
+  p.tool_tissue_stiffness_n_per_mm = c.tool_tissue_stiffness_n_per_mm;
+  p.tool_thread_stiffness_n_per_mm = c.tool_thread_stiffness_n_per_mm;
+  p.tool_volume_stiffness_n_per_mm = c.tool_volume_stiffness_n_per_mm;
+  p.thread_tissue_stiffness_n_per_mm = c.thread_tissue_stiffness_n_per_mm;
+  p.tissue_tissue_stiffness_n_per_mm = c.tissue_tissue_stiffness_n_per_mm;
+  p.bone_stiffness_n_per_mm = c.bone_stiffness_n_per_mm;
+  p.tool_bone_stiffness_n_per_mm = c.tool_bone_stiffness_n_per_mm;
+  return p;
 }
 
 std::array<Vec3, kToolSlots> ToolForces(const CollisionOutput& out) {

@@ -194,6 +194,46 @@ void ReadTimeAndSolver(const Section& root, Model* m) {
   }
 }
 
+// Optional `contact:` section: distances in mm, stiffnesses in N/mm (docs/scenario-format.md).
+void ReadContact(const Section& root, Model* m) {
+  if (!root.Has("contact")) return;
+  ContactOptions& c = m->contact;
+  Section s(root.ctx(), root.Get("contact"), "contact",
+            {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction", "max_substeps",
+             "stiffness"});
+  c.alarm_distance_mm = s.Positive("alarm_distance", c.alarm_distance_mm);
+  c.contact_distance_mm = s.Positive("contact_distance", c.contact_distance_mm);
+  if (!(c.contact_distance_mm < c.alarm_distance_mm)) {
+    Fail(root.ctx(), s.Has("contact_distance") ? s.Get("contact_distance") : s.node(),
+         s.Field("contact_distance"),
+         "must be < contact.alarm_distance (contacts must exist "
+         "before the gap they keep)");
+  }
+  c.max_depth_mm = s.Positive("max_depth", c.max_depth_mm);
+  c.sweep_fraction = s.Positive("sweep_fraction", c.sweep_fraction);
+  if (c.sweep_fraction > 1) {
+    Fail(root.ctx(), s.Get("sweep_fraction"), s.Field("sweep_fraction"),
+         "must be in (0, 1] (a larger sweep substep can tunnel)");
+  }
+  c.max_substeps = static_cast<int>(s.Integer("max_substeps", c.max_substeps, 1));
+  if (c.max_substeps > 4096) {
+    Fail(root.ctx(), s.Get("max_substeps"), s.Field("max_substeps"), "must be <= 4096");
+  }
+  if (!s.Has("stiffness")) return;
+  Section k(root.ctx(), s.Get("stiffness"), s.Field("stiffness"),
+            {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue", "bone",
+             "tool_bone"});
+  c.tool_tissue_stiffness_n_per_mm = k.Positive("tool_tissue", c.tool_tissue_stiffness_n_per_mm);
+  c.tool_thread_stiffness_n_per_mm = k.Positive("tool_thread", c.tool_thread_stiffness_n_per_mm);
+  c.tool_volume_stiffness_n_per_mm = k.Positive("tool_volume", c.tool_volume_stiffness_n_per_mm);
+  c.thread_tissue_stiffness_n_per_mm =
+      k.Positive("thread_tissue", c.thread_tissue_stiffness_n_per_mm);
+  c.tissue_tissue_stiffness_n_per_mm =
+      k.Positive("tissue_tissue", c.tissue_tissue_stiffness_n_per_mm);
+  c.bone_stiffness_n_per_mm = k.Positive("bone", c.bone_stiffness_n_per_mm);
+  c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
+}
+
 void ReadMaterials(const Section& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
   if (!materials.IsMap())
@@ -503,14 +543,15 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   }
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
   Section root(ctx, doc, "",
-               {"name", "seed", "time", "gravity", "solver", "output", "materials", "bodies",
-                "joins", "portals", "instruments", "camera", "landmarks", "regions"});
+               {"name", "seed", "time", "gravity", "solver", "output", "contact", "materials",
+                "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
   Model m;
   m.scenario_path = path;
   m.scenario_text = text;
   m.scenario_sha256 = Sha256Hex(text);
   m.name = root.String("name");
   ReadTimeAndSolver(root, &m);
+  ReadContact(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
   ReadBodies(root, &m, &pending_fixed);

@@ -82,6 +82,7 @@ void AdvanceTime(const Model& model, State* state) {
 void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
   ws->soft.Build(model, state);
   physics::InitThreadWorkspace(model.threads, &ws->threads);
+  ws->collision_params = collision::ParamsFromModel(model.contact);  // scenario `contact:`
   ws->collision = collision::CollisionWorld{};
   collision::SyncWorld(model, state, &ws->collision);
 }

@@ -175,5 +175,49 @@ TEST_F(ScenarioLoaderTest, EmptyRegionIsAnError) {
   EXPECT_EQ(e.field(), "regions[0].box");
 }
 
+TEST_F(ScenarioLoaderTest, ContactDefaultsWhenTheSectionIsAbsent) {
+  const Model m = LoadScenarioFromText(Valid(), Path());
+  const ContactOptions defaults;
+  EXPECT_EQ(m.contact.alarm_distance_mm, defaults.alarm_distance_mm);
+  EXPECT_EQ(m.contact.contact_distance_mm, 0.1);
+  EXPECT_EQ(m.contact.tissue_tissue_stiffness_n_per_mm, defaults.tissue_tissue_stiffness_n_per_mm);
+}
+
+TEST_F(ScenarioLoaderTest, ContactSectionIsRead) {
+  const Model m = LoadScenarioFromText(
+      Edit("seed: 7",
+           "seed: 7\ncontact:\n  alarm_distance: 0.8\n  contact_distance: 0.05\n"
+           "  max_depth: 2\n  sweep_fraction: 0.25\n  max_substeps: 32\n"
+           "  stiffness: {tool_tissue: 3, tissue_tissue: 1.5, tool_bone: 7}"),
+      Path());
+  EXPECT_DOUBLE_EQ(m.contact.alarm_distance_mm, 0.8);
+  EXPECT_DOUBLE_EQ(m.contact.contact_distance_mm, 0.05);
+  EXPECT_DOUBLE_EQ(m.contact.max_depth_mm, 2.0);
+  EXPECT_DOUBLE_EQ(m.contact.sweep_fraction, 0.25);
+  EXPECT_EQ(m.contact.max_substeps, 32);
+  EXPECT_DOUBLE_EQ(m.contact.tool_tissue_stiffness_n_per_mm, 3.0);
+  EXPECT_DOUBLE_EQ(m.contact.tissue_tissue_stiffness_n_per_mm, 1.5);
+  EXPECT_DOUBLE_EQ(m.contact.tool_bone_stiffness_n_per_mm, 7.0);
+  EXPECT_DOUBLE_EQ(m.contact.bone_stiffness_n_per_mm, ContactOptions{}.bone_stiffness_n_per_mm);
+}
+
+TEST_F(ScenarioLoaderTest, BadContactValuesNameTheField) {
+  auto with = [](const std::string& section) { return Edit("seed: 7", "seed: 7\n" + section); };
+  const InputError neg = LoadError(with("contact: {alarm_distance: -1}"));
+  EXPECT_EQ(neg.field(), "contact.alarm_distance");
+  EXPECT_EQ(neg.line(), 3);
+  EXPECT_EQ(LoadError(with("contact: {contact_distance: 1.5}")).field(),
+            "contact.contact_distance");  // not below the alarm distance
+  EXPECT_EQ(LoadError(with("contact: {sweep_fraction: 2}")).field(), "contact.sweep_fraction");
+  EXPECT_EQ(LoadError(with("contact: {max_substeps: 0}")).field(), "contact.max_substeps");
+  EXPECT_EQ(LoadError(with("contact: {max_depth: far}")).field(), "contact.max_depth");
+  EXPECT_EQ(LoadError(with("contact: {alarm: 1}")).field(), "contact.alarm");
+  EXPECT_EQ(LoadError(with("contact: {stiffness: {tissue_tissue: 0}}")).field(),
+            "contact.stiffness.tissue_tissue");
+  EXPECT_EQ(LoadError(with("contact: {stiffness: {tool_tisue: 1}}")).field(),
+            "contact.stiffness.tool_tisue");
+  EXPECT_EQ(LoadError(with("contact: 3")).field(), "contact");
+}
+
 }  // namespace
 }  // namespace arthrosim::io

@@ -41,9 +41,19 @@ struct CollisionParams {
   /// Per plane of those contacts (four planes per material point).
   double tool_volume_stiffness_n_per_mm = 20.0;
   double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides)
-  double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point
-  double tool_bone_stiffness_n_per_mm = 5.0;      ///< reaction on the (kinematic) tool, per part
+  double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides)
+  double bone_stiffness_n_per_mm =
+      2.0;  ///< tissue-bone, bone tip-tissue and thread-bone, per point
+  double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the (kinematic) tool, per part
+  /// Tissue-tissue contacts between different soft bodies; false only to show what happens
+  /// without.
+  bool tissue_tissue_contacts = true;
+  /// Salient bone vertices (a spur tip) against soft triangles; false only to show the gap.
+  bool bone_tip_contacts = true;
 };
+
+/// The parameters of a scenario's `contact:` section (defaults where it is silent).
+CollisionParams ParamsFromModel(const ContactOptions& contact);
 
 /// Bone triangles near each query slot (soft surface vertices, thread nodes and segments): the
 /// list of every triangle whose box overlaps a `wide` box (the query box when it was made, grown
@@ -62,6 +72,31 @@ struct NearBoneCache {
   std::vector<double> far_margin;
 };
 
+/// Out-of-reach bounds for query points against a moving surface (temporal coherence that never
+/// changes a result): point i, found at least margin[i] + reach from the surface when it was at
+/// at[i] and the surface had drifted drift0[i] (cumulative max vertex displacement), cannot be
+/// within reach while |p - at[i]| + (drift - drift0[i]) < margin[i] (distance to a moving
+/// triangle surface changes by at most the point's motion plus the largest vertex motion).
+struct FarBounds {
+  std::int64_t key_a = -1, key_b = -1;  ///< versions of the two sides the bounds were made for
+  std::vector<Vec3> at;
+  std::vector<double> margin;  ///< mm; <= 0 = no bound
+  std::vector<double> drift0;
+  /// Clears the bounds unless they were made for (a, b) with n points.
+  void Reset(std::int64_t a, std::int64_t b, std::size_t n) {
+    if (key_a == a && key_b == b && margin.size() == n) return;
+    key_a = a;
+    key_b = b;
+    at.assign(n, Vec3::Zero());
+    margin.assign(n, -1.0);
+    drift0.assign(n, 0.0);
+  }
+  /// True if point i at p is still provably out of reach of a surface that has drifted `drift`.
+  bool Holds(std::size_t i, const Vec3& p, double drift) const {
+    return margin[i] > 0 && (p - at[i]).norm() + (drift - drift0[i]) < margin[i];
+  }
+};
+
 /// Derived collision data (surfaces, trees): Workspace, rebuilt from State at will.
 struct CollisionWorld {
   struct SoftEntry {
@@ -73,6 +108,14 @@ struct CollisionWorld {
     bool built = false;
     std::vector<NearBoneCache> near_bone;  ///< per bone, per local surface vertex
     std::vector<std::uint8_t> fixed;       ///< per local surface vertex: a Model fixed node
+    /// Per other soft body joined to this one (empty if not joined): per local surface vertex,
+    /// 1 = near the join at rest (no contact against that body), and per local triangle, 1 = it
+    /// touches a joined node (an interface or rim triangle: never an obstacle for that body).
+    std::vector<std::vector<std::uint8_t>> join_vertex, join_tri;
+    std::int64_t version = 0;  ///< increases at every surface rebuild
+    /// Sum over refits of the largest surface vertex displacement, mm (FarBounds drift).
+    double drift_mm = 0;
+    std::vector<FarBounds> far_soft;  ///< per other soft body, per local surface vertex
   };
   struct BoneEntry {
     mesh::TriMesh surface;  ///< copy the tree was built for
@@ -82,6 +125,10 @@ struct CollisionWorld {
     bool built = false;
     bool closed = false;       ///< every edge shared by exactly two triangles (signed distance)
     std::int64_t version = 0;  ///< increases at every (re)build
+    /// Local vertices that stick out (a convex corner sharper than the smooth tessellation of a
+    /// bone: a spur tip), ascending; they also meet soft triangles (BoneTipTissue).
+    std::vector<std::int32_t> salient;
+    std::vector<FarBounds> far_soft;  ///< per soft body, per salient vertex
   };
   struct ThreadEntry {
     std::vector<NearBoneCache> near_bone;  ///< per bone, per thread node then segment

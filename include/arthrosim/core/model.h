@@ -132,6 +132,23 @@ struct SolverOptions {
   double cg_tolerance = 1e-8;  ///< relative residual |r|/|b|
 };
 
+/// Contact parameters (scenario section `contact:`, all optional; docs/contact-model.md explains
+/// each value). Defaults are the values the contact model was tuned with.
+struct ContactOptions {
+  double alarm_distance_mm = 1.0;    ///< gap below which a contact is handed to the solver, mm
+  double contact_distance_mm = 0.1;  ///< gap the penalty keeps (skin), mm, < alarm_distance_mm
+  double max_depth_mm = 1.5;         ///< deeper points count as passed through (stitches), mm
+  double sweep_fraction = 0.5;       ///< tool sweep substep <= this * alarm_distance_mm, (0, 1]
+  int max_substeps = 64;             ///< cap on tool sweep substeps per step
+  double tool_tissue_stiffness_n_per_mm = 2.0;    ///< per contact point, N/mm
+  double tool_thread_stiffness_n_per_mm = 2.0;    ///< per contact point, N/mm
+  double tool_volume_stiffness_n_per_mm = 20.0;   ///< sharp point (awl), per plane, N/mm
+  double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides), N/mm
+  double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides), N/mm
+  double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point, N/mm
+  double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the kinematic tool, per part, N/mm
+};
+
 /// Run options.
 struct Options {
   double dt_s = 0.02;
@@ -151,6 +168,7 @@ struct Model {
   std::string scenario_sha256;  ///< hex digest of scenario_text
   Options options;
   SolverOptions solver;
+  ContactOptions contact;
   std::vector<Material> materials;
   std::vector<SoftBodyModel> soft_bodies;
   std::vector<BoneModel> bones;
