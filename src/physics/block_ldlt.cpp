@@ -30,7 +30,7 @@ struct BlockLdlt::Impl {
   std::vector<std::int64_t> a_to_panel;  // entry p of a -> its panel position
   std::vector<double> panel, dvals, scaled, sums;
   std::vector<std::int32_t> rel, head, next, cursor;
-  mutable std::vector<double> work, acc;
+  mutable std::vector<double> work, acc, gather;
 };
 
 namespace {
@@ -176,6 +176,7 @@ void BlockLdlt::Symbolic() {
   }
   m.sn_col.push_back(static_cast<std::int32_t>(dim));
   m.acc.assign(max_w, 0.0);
+  m.gather.assign(static_cast<std::size_t>(dim), 0.0);
   m.vals.assign(static_cast<std::size_t>(m.sn_val.back()), 0.0);
   m.panel.assign(static_cast<std::size_t>(m.panel_at.back()), 0.0);
   m.inv_d.assign(static_cast<std::size_t>(dim), 0.0);
@@ -354,9 +355,17 @@ void BlockLdlt::Solve(double* x) const {
       case 6:
         ForwardRows<6>(b, rows, rc, wd, y, w);
         break;
-      default:
-        ForwardRows<0>(b, rows, rc, wd, y, w);
+      default: {
+        // Wide runs: one dense product g = B y (Eigen's GEMV, fixed order for a given build),
+        // then one scatter.
+        using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+        const Eigen::Map<const RowMajor> bm(b, static_cast<Eigen::Index>(rc),
+                                            static_cast<Eigen::Index>(wd));
+        Eigen::Map<Eigen::VectorXd> g(m.gather.data(), static_cast<Eigen::Index>(rc));
+        g.noalias() = bm * Eigen::Map<const Eigen::VectorXd>(y, static_cast<Eigen::Index>(wd));
+        for (std::size_t r = 0; r < rc; ++r) w[rows[r]] -= m.gather[r];
         break;
+      }
     }
   }
   for (std::size_t j = 0; j < dim; ++j) w[j] *= m.inv_d[j];
@@ -376,9 +385,16 @@ void BlockLdlt::Solve(double* x) const {
       case 6:
         BackwardRows<6>(b, rows, rc, wd, w, acc);
         break;
-      default:
-        BackwardRows<0>(b, rows, rc, wd, w, acc);
+      default: {
+        using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+        const Eigen::Map<const RowMajor> bm(b, static_cast<Eigen::Index>(rc),
+                                            static_cast<Eigen::Index>(wd));
+        for (std::size_t r = 0; r < rc; ++r) m.gather[r] = w[rows[r]];
+        Eigen::Map<Eigen::VectorXd>(acc, static_cast<Eigen::Index>(wd)).noalias() =
+            bm.transpose() *
+            Eigen::Map<const Eigen::VectorXd>(m.gather.data(), static_cast<Eigen::Index>(rc));
         break;
+      }
     }
     for (std::size_t k = wd; k-- > 0;) {
       y[k] = (y[k] - acc[k]) - Dot(t + k * wd + k + 1, y + k + 1, wd - k - 1);

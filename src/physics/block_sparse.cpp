@@ -14,12 +14,14 @@ void BlockSparseMatrix::Reset(std::int32_t n) {
   free_blocks_.clear();
   row_.assign(static_cast<std::size_t>(n), {});
   live_pairs_ = 0;
+  flat_dirty_ = true;
 }
 
 void BlockSparseMatrix::Resize(std::int32_t n) {
   if (n <= rows()) return;
   diag_.resize(static_cast<std::size_t>(n), Mat3::Zero());
   row_.resize(static_cast<std::size_t>(n));
+  flat_dirty_ = true;
 }
 
 std::int32_t BlockSparseMatrix::AddPair(std::int32_t i, std::int32_t j) {
@@ -51,6 +53,7 @@ std::int32_t BlockSparseMatrix::AddPair(std::int32_t i, std::int32_t j) {
                              [](const Entry& x, std::int32_t col) { return x.col < col; });
   other.insert(jt, Entry{r, e});
   ++live_pairs_;
+  flat_dirty_ = true;
   return e;
 }
 
@@ -67,6 +70,7 @@ void BlockSparseMatrix::ReleasePair(std::int32_t e) {
   pairs_[static_cast<std::size_t>(e)] = {-1, -1};
   free_blocks_.push_back(e);
   --live_pairs_;
+  flat_dirty_ = true;
 }
 
 void BlockSparseMatrix::SetZero() {
@@ -74,34 +78,72 @@ void BlockSparseMatrix::SetZero() {
   for (Mat3& m : blocks_) m.setZero();
 }
 
+void BlockSparseMatrix::Flatten() const {
+  const auto n = static_cast<std::size_t>(rows());
+  flat_start_.assign(n + 1, 0);
+  flat_col_.clear();
+  flat_block_.clear();
+  flat_col_.reserve(n + 2 * static_cast<std::size_t>(live_pairs_));
+  flat_block_.reserve(flat_col_.capacity());
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto ii = static_cast<std::int32_t>(i);
+    bool diag_done = false;
+    for (const Entry& en : row_[i]) {
+      if (!diag_done && en.col > ii) {
+        flat_col_.push_back(ii);
+        flat_block_.push_back(kDiag);
+        diag_done = true;
+      }
+      flat_col_.push_back(en.col);
+      flat_block_.push_back(en.col > ii ? en.block : (en.block | kTransposed));
+    }
+    if (!diag_done) {
+      flat_col_.push_back(ii);
+      flat_block_.push_back(kDiag);
+    }
+    flat_start_[i + 1] = static_cast<std::int32_t>(flat_col_.size());
+  }
+  flat_dirty_ = false;
+}
+
 void BlockSparseMatrix::Multiply(const Eigen::VectorXd& x,
                                  const std::vector<std::uint8_t>& row_mask,
                                  Eigen::VectorXd* y) const {
+  if (flat_dirty_) Flatten();
   const std::int64_t n = rows();
+  const double* xv = x.data();
+  double* yv = y->data();
   ParallelFor(n, 256, [&](std::int64_t begin, std::int64_t end) {
     for (std::int64_t i = begin; i < end; ++i) {
-      auto yi = y->segment<3>(3 * i);
-      if (!row_mask[static_cast<std::size_t>(i)]) {
-        yi.setZero();
+      const auto iu = static_cast<std::size_t>(i);
+      double* yi = yv + 3 * i;
+      if (!row_mask[iu]) {
+        yi[0] = yi[1] = yi[2] = 0;
         continue;
       }
       // Sum in column order with the diagonal at its place, so the order is the pattern's.
-      Vec3 acc = Vec3::Zero();
-      bool diag_done = false;
-      for (const Entry& en : row_[static_cast<std::size_t>(i)]) {
-        if (!diag_done && en.col > i) {
-          acc += diag_[static_cast<std::size_t>(i)] * x.segment<3>(3 * i);
-          diag_done = true;
-        }
-        const Mat3& b = blocks_[static_cast<std::size_t>(en.block)];
-        if (en.col > i) {
-          acc += b * x.segment<3>(3 * static_cast<std::int64_t>(en.col));
+      double a0 = 0, a1 = 0, a2 = 0;
+      for (std::int32_t k = flat_start_[iu]; k < flat_start_[iu + 1]; ++k) {
+        const std::int32_t code = flat_block_[static_cast<std::size_t>(k)];
+        const double* xc =
+            xv + 3 * static_cast<std::int64_t>(flat_col_[static_cast<std::size_t>(k)]);
+        // Column-major 3x3: m[r + 3 c]. Row r of B is (m[r], m[r+3], m[r+6]); of B^T, column r.
+        if (code == kDiag || !(code & kTransposed)) {
+          const double* m =
+              (code == kDiag ? diag_[iu] : blocks_[static_cast<std::size_t>(code)]).data();
+          a0 += (m[0] * xc[0] + m[3] * xc[1]) + m[6] * xc[2];
+          a1 += (m[1] * xc[0] + m[4] * xc[1]) + m[7] * xc[2];
+          a2 += (m[2] * xc[0] + m[5] * xc[1]) + m[8] * xc[2];
         } else {
-          acc += b.transpose() * x.segment<3>(3 * static_cast<std::int64_t>(en.col));
+          const double* m = blocks_[static_cast<std::size_t>(code & ~kTransposed)].data();
+          a0 += (m[0] * xc[0] + m[1] * xc[1]) + m[2] * xc[2];
+          a1 += (m[3] * xc[0] + m[4] * xc[1]) + m[5] * xc[2];
+          a2 += (m[6] * xc[0] + m[7] * xc[1]) + m[8] * xc[2];
         }
       }
-      if (!diag_done) acc += diag_[static_cast<std::size_t>(i)] * x.segment<3>(3 * i);
-      yi = acc;
+      yi[0] = a0;
+      yi[1] = a1;
+      yi[2] = a2;
     }
   });
 }

@@ -19,7 +19,7 @@ double Dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 }  // namespace
 
 CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
-                  int max_iterations, double tolerance, double reference_norm) {
+                  int max_iterations, double tolerance, double reference_norm, CgScratch* scratch) {
   CgResult result;
   const double b_norm = std::sqrt(Dot(b, b));
   if (b_norm == 0 || !std::isfinite(b_norm)) {
@@ -28,7 +28,13 @@ CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorX
   }
   const double scale = std::max(b_norm, reference_norm);
   const Eigen::Index n = b.size();
-  Eigen::VectorXd r(n), z(n), p(n), q(n);
+  CgScratch local;
+  CgScratch& w = scratch ? *scratch : local;
+  w.r.resize(n);
+  w.z.resize(n);
+  w.p.resize(n);
+  w.q.resize(n);
+  Eigen::VectorXd &r = w.r, &z = w.z, &p = w.p, &q = w.q;
   a.Apply(*x, &q);
   r = b - q;
   double r_norm = std::sqrt(Dot(r, r));
@@ -38,10 +44,15 @@ CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorX
     r = b;
     r_norm = b_norm;
   }
+  int it = 0;
+  if (r_norm <= tolerance * scale) {  // the warm start is already accurate enough
+    result.relative_residual = r_norm / scale;
+    result.converged = true;
+    return result;
+  }
   a.Precondition(r, &z);
   p = z;
   double rz = Dot(r, z);
-  int it = 0;
   while (r_norm > tolerance * scale && it < max_iterations) {
     a.Apply(p, &q);
     const double pq = Dot(p, q);

@@ -654,17 +654,25 @@ void SoftSystem::BuildPreconditioner(double h) {
     if (factor_.ok()) {
       // Warp: the current node rotation (polar of the sum of incident element rotations, in
       // (body, tet) order) times the inverse anchor rotation.
+      node_sum_.resize(static_cast<std::size_t>(slots_));
       ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
         for (std::int64_t s = begin; s < end; ++s) {
           const auto i = static_cast<std::size_t>(s);
+          Mat3& sum = node_sum_[i];
+          sum.setZero();  // fixed slots: zero, whose polar factor is the identity
           if (!free_[i]) continue;
-          Mat3 sum = Mat3::Zero();
           for (const ElemRef& r : incident_[i]) {
             const Body& bd = bodies_[static_cast<std::size_t>(r.body)];
             if (bd.rest[static_cast<std::size_t>(r.tet)].degenerate) continue;
             sum += bd.rotation[static_cast<std::size_t>(r.tet)];
           }
-          node_rot_[i] = PolarRotation(sum) * anchor_rot_[i].transpose();
+        }
+        // Side by side (vectorised); each lane's result depends on its own matrix only.
+        const auto b = static_cast<std::size_t>(begin);
+        PolarRotations(node_sum_.data() + b, node_rot_.data() + b, static_cast<int>(end - begin));
+        for (std::int64_t s = begin; s < end; ++s) {
+          const auto i = static_cast<std::size_t>(s);
+          node_rot_[i] = Mat3(node_rot_[i] * anchor_rot_[i].transpose());
         }
       });
       return;
@@ -936,8 +944,8 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
     if (free_[i]) m2 += mass_[i] * mass_[i];
   }
   const double reference = h * model.options.gravity_mm_s2.norm() * std::sqrt(m2);
-  const CgResult cg =
-      SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance, reference);
+  const CgResult cg = SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations,
+                               model.solver.cg_tolerance, reference, &cg_scratch_);
   stats.solve_ms = MsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.cg_relative_residual = cg.relative_residual;

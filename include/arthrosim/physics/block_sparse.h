@@ -59,6 +59,14 @@ class BlockSparseMatrix {
   std::vector<std::int32_t> free_blocks_;  // recycled block slots (storage only, not order)
   std::vector<std::vector<Entry>> row_;    // sorted by col
   std::int64_t live_pairs_ = 0;
+  // Flat copy of the pattern for products (rebuilt after a pattern change): per row its
+  // entries in column order, the diagonal at its place. kDiag marks the diagonal; a block
+  // index with kTransposed set is read transposed (the row is the pair's larger node).
+  static constexpr std::int32_t kDiag = -1;
+  static constexpr std::int32_t kTransposed = std::int32_t{1} << 30;
+  void Flatten() const;
+  mutable bool flat_dirty_ = true;
+  mutable std::vector<std::int32_t> flat_start_, flat_col_, flat_block_;
 };
 
 }  // namespace arthrosim::physics

@@ -22,11 +22,19 @@ struct CgResult {
   bool converged = false;
 };
 
+/// Work vectors of SolvePcg, kept by the caller so a steady-state solve allocates nothing.
+struct CgScratch {
+  Eigen::VectorXd r, z, p, q;
+};
+
 /// Solves A x = b starting from *x (warm start). Stops when |r| <= tolerance max(|b|,
 /// reference_norm) or after max_iterations products. reference_norm is the right-hand side
 /// scale that sets the required accuracy (0: relative to |b| alone); it keeps a nearly
 /// balanced system (|b| -> 0) from chasing round-off. b = 0 gives x = 0 with no iteration.
+/// A warm start that already meets the tolerance costs one product and no preconditioning.
+/// scratch (optional) holds the work vectors between calls.
 CgResult SolvePcg(const SpdOperator& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
-                  int max_iterations, double tolerance, double reference_norm = 0);
+                  int max_iterations, double tolerance, double reference_norm = 0,
+                  CgScratch* scratch = nullptr);
 
 }  // namespace arthrosim::physics

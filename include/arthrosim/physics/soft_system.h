@@ -27,6 +27,7 @@
 #include "arthrosim/core/state.h"
 #include "arthrosim/physics/block_ldlt.h"
 #include "arthrosim/physics/block_sparse.h"
+#include "arthrosim/physics/cg_solver.h"
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/corotational_fem.h"
 
@@ -229,8 +230,10 @@ class SoftSystem {
 
   // Step scratch (3 * slots_).
   Eigen::VectorXd x_, v_, f_, b_, dv_, tmp_;
+  CgScratch cg_scratch_;
   std::vector<Mat3> precond_;    // inverse diagonal blocks per slot
   std::vector<Mat3> node_rot_;   // per slot rotation for the warped rest factor
+  std::vector<Mat3> node_sum_;   // per slot sum of incident element rotations (scratch)
   double h_ = 0;                 // step of the current system
   std::vector<double> kscales_;  // per body scale of K in the system
   std::vector<PointTerm> terms_;
