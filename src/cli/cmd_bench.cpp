@@ -44,6 +44,8 @@ struct Series {
   std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output,
       cg_it;
   double last_residual = 0;
+  int refactors = 0;       // steps that refactored the preconditioner
+  double refactor_ms = 0;  // their total factorisation time
 };
 
 Series TimeScenario(const Model& model, const BenchArgs& a) {
@@ -78,6 +80,10 @@ Series TimeScenario(const Model& model, const BenchArgs& a) {
     s.output.push_back(output_ms);
     s.cg_it.push_back(t.soft.cg_iterations);
     s.last_residual = t.soft.cg_relative_residual;
+    if (t.soft.refactored) {
+      ++s.refactors;
+      s.refactor_ms += t.soft.factor_ms;
+    }
   }
   writer.Close();
   std::filesystem::remove(out);
@@ -113,6 +119,9 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("output_ms_median={:.3f}\n", Median(s.output));
   fmt::print("cg_iterations_mean={:.2f}\n", Mean(s.cg_it));
   fmt::print("cg_residual_final={:.3g}\n", s.last_residual);
+  fmt::print("step_ms_mean={:.3f}\n", Mean(s.step));
+  fmt::print("refactors={}\nrefactor_ms_mean={:.3f}\n", s.refactors,
+             s.refactors ? s.refactor_ms / s.refactors : 0.0);
 }
 
 // Soft tissue alone (CPU time): idle and driven by a grasper-like spring, refined 4x and 16x,

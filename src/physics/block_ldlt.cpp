@@ -1,5 +1,6 @@
 #include "arthrosim/physics/block_ldlt.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
@@ -31,9 +32,61 @@ struct BlockLdlt::Impl {
   std::vector<double> panel, dvals, scaled, sums;
   std::vector<std::int32_t> rel, head, next, cursor;
   mutable std::vector<double> work, acc, gather;
+  Eigen::MatrixXd gemm_s, gemm_c;  // scratch of the large supernode updates (grow only)
 };
 
 namespace {
+
+// Supernode updates with at least this many multiply-adds go through one dense product.
+// Determinism: Eigen's GEMM splits the inner (summed) dimension only beyond its kc block
+// (~500 for doubles with a 32 KiB L1); supernode widths here stay far below, so each entry is
+// summed in the same order on any x86-64 machine (the split of rows/columns changes nothing).
+constexpr std::int64_t kGemmMinWork = 2048;
+
+// Supernodes at least this wide are factored by blocked dense kernels (Cholesky, then a
+// triangular solve for the rows below), narrower ones column by column.
+constexpr std::int64_t kBlockedMinWidth = 24;
+
+// LDL^T of a supernode panel in place (column-major, ld rows: the w x w triangle, then the rows
+// below), right-looking column by column; D into d. False when not positive definite.
+bool DenseLdlt(double* ps, std::int64_t w, std::int64_t ld, double* d) {
+  for (std::int64_t j = 0; j < w; ++j) {
+    double* cj = ps + j * ld;
+    const double dj = cj[j];
+    if (!(dj > 0) || !std::isfinite(dj)) return false;
+    d[j] = dj;
+    const double inv = 1.0 / dj;
+    for (std::int64_t k = j + 1; k < w; ++k) {
+      const double lkj_d = cj[k];  // L(k, j) d_j
+      double* ck = ps + k * ld;
+      for (std::int64_t i = k; i < ld; ++i) ck[i] -= cj[i] * (lkj_d * inv);
+    }
+    for (std::int64_t i = j + 1; i < ld; ++i) cj[i] *= inv;
+  }
+  return true;
+}
+
+// The same for a wide panel with blocked kernels: Cholesky C C^T of the triangle (Eigen's
+// blocked LLT), rows below B <- B C^-T, then L = C diag(C)^-1 and D = diag(C)^2.
+bool DenseLdltBlocked(double* ps, std::int64_t w, std::int64_t rc, double* d) {
+  using Panel = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+  const std::int64_t ld = w + rc;
+  Panel top(ps, w, w, Eigen::OuterStride<>(ld));
+  Panel below(ps + w, rc, w, Eigen::OuterStride<>(ld));
+  Eigen::Ref<Eigen::MatrixXd, 0, Eigen::OuterStride<>> top_ref(top);
+  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd, 0, Eigen::OuterStride<>>, Eigen::Lower> llt(top_ref);
+  if (llt.info() != Eigen::Success) return false;
+  if (rc > 0) top.triangularView<Eigen::Lower>().transpose().solveInPlace<Eigen::OnTheRight>(below);
+  for (std::int64_t j = 0; j < w; ++j) {
+    const double cjj = top(j, j);
+    if (!(cjj > 0) || !std::isfinite(cjj)) return false;
+    d[j] = cjj * cjj;
+    const double inv = 1.0 / cjj;
+    for (std::int64_t i = j + 1; i < w; ++i) top(i, j) *= inv;
+    for (std::int64_t i = 0; i < rc; ++i) below(i, j) *= inv;
+  }
+  return true;
+}
 
 // Dot product of length n in four interleaved partial sums: a single running sum waits on the
 // add latency each term (wide supernodes); the order is fixed, so the bits are too.
@@ -247,23 +300,45 @@ bool BlockLdlt::NumericFactor() {
       const std::int64_t p0 = m.cursor[du];
       std::int64_t q = p0;
       while (q < drc && rd[q] < c0 + w) ++q;
-      // For each target column j (row rd[j] of d, inside s): scaled = D_d L_d(j, :), then
-      // subtract L_d(i, :) . scaled from every row i >= j of d.
-      for (std::int64_t j = p0; j < q; ++j) {
-        for (std::int64_t k = 0; k < dw; ++k)
-          scaled[k] = pd[k * dld + dw + j] * m.dvals[static_cast<std::size_t>(dc0 + k)];
-        // Column sweeps over d's contiguous panel columns (vectorisable), then one scatter.
-        double* sum = m.sums.data();
-        for (std::int64_t i = j; i < drc; ++i) sum[i] = 0;
-        for (std::int64_t k = 0; k < dw; ++k) {
-          const double* lk = pd + k * dld + dw;
-          const double sk = scaled[k];
-          for (std::int64_t i = j; i < drc; ++i) sum[i] += lk[i] * sk;
+      const std::int64_t nj = q - p0, ni = drc - p0;
+      if (dw * nj * ni >= kGemmMinWork) {
+        // Large update: C = L_d(p0:, :) D_d L_d(p0:q, :)^T as one dense product (register
+        // blocked), then scattered into the target columns' lower parts.
+        using Panel = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+        const Panel ld_rows(pd + dw + p0, ni, dw, Eigen::OuterStride<>(dld));
+        m.gemm_s.resize(nj, dw);
+        m.gemm_s.noalias() =
+            ld_rows.topRows(nj) *
+            Eigen::Map<const Eigen::VectorXd>(m.dvals.data() + dc0, dw).asDiagonal();
+        m.gemm_c.resize(ni, nj);
+        m.gemm_c.noalias() = ld_rows * m.gemm_s.transpose();
+        for (std::int64_t jj = 0; jj < nj; ++jj) {
+          double* col = ps + (rd[p0 + jj] - c0) * ld;
+          const double* cj = m.gemm_c.data() + jj * ni;
+          for (std::int64_t ii = jj; ii < ni; ++ii) {
+            const std::int32_t row = rd[p0 + ii];
+            col[row < c0 + w ? row - c0 : rel[row]] -= cj[ii];
+          }
         }
-        double* col = ps + (rd[j] - c0) * ld;
-        for (std::int64_t i = j; i < drc; ++i) {
-          const std::int32_t row = rd[i];
-          col[row < c0 + w ? row - c0 : rel[row]] -= sum[i];
+      } else {
+        // For each target column j (row rd[j] of d, inside s): scaled = D_d L_d(j, :), then
+        // subtract L_d(i, :) . scaled from every row i >= j of d.
+        for (std::int64_t j = p0; j < q; ++j) {
+          for (std::int64_t k = 0; k < dw; ++k)
+            scaled[k] = pd[k * dld + dw + j] * m.dvals[static_cast<std::size_t>(dc0 + k)];
+          // Column sweeps over d's contiguous panel columns (vectorisable), then one scatter.
+          double* sum = m.sums.data();
+          for (std::int64_t i = j; i < drc; ++i) sum[i] = 0;
+          for (std::int64_t k = 0; k < dw; ++k) {
+            const double* lk = pd + k * dld + dw;
+            const double sk = scaled[k];
+            for (std::int64_t i = j; i < drc; ++i) sum[i] += lk[i] * sk;
+          }
+          double* col = ps + (rd[j] - c0) * ld;
+          for (std::int64_t i = j; i < drc; ++i) {
+            const std::int32_t row = rd[i];
+            col[row < c0 + w ? row - c0 : rel[row]] -= sum[i];
+          }
         }
       }
       m.cursor[du] = static_cast<std::int32_t>(q);
@@ -274,19 +349,10 @@ bool BlockLdlt::NumericFactor() {
       }
       d = dnext;
     }
-    // Dense LDL^T of the panel (right-looking inside the supernode).
-    for (std::int64_t j = 0; j < w; ++j) {
-      double* cj = ps + j * ld;
-      const double dj = cj[j];
-      if (!(dj > 0) || !std::isfinite(dj)) return false;
-      m.dvals[static_cast<std::size_t>(c0 + j)] = dj;
-      const double inv = 1.0 / dj;
-      for (std::int64_t k = j + 1; k < w; ++k) {
-        const double lkj_d = cj[k];  // L(k, j) d_j
-        double* ck = ps + k * ld;
-        for (std::int64_t i = k; i < ld; ++i) ck[i] -= cj[i] * (lkj_d * inv);
-      }
-      for (std::int64_t i = j + 1; i < ld; ++i) cj[i] *= inv;
+    if (w >= kBlockedMinWidth) {
+      if (!DenseLdltBlocked(ps, w, rc, m.dvals.data() + c0)) return false;
+    } else if (!DenseLdlt(ps, w, ld, m.dvals.data() + c0)) {
+      return false;
     }
     m.cursor[s] = 0;
     if (rc > 0) {
