@@ -77,43 +77,60 @@ void PolarRotations(const Mat3* f, Mat3* r, int count) {
     }
     bool done[kLanes] = {false, false, false, false};
     for (int it = 0; it < 30; ++it) {
-      double stop[kLanes];
+      // Every operation is a loop over the lanes (innermost), so it compiles to packed SIMD.
+      // Column-major: x[c * 3 + row]. Cofactor columns: c0 = x1 x x2, c1 = x2 x x0, c2 = x0 x x1.
+      alignas(32) double cof[9][kLanes], inv_det[kLanes], inv_norm2[kLanes], ga[kLanes], gb[kLanes],
+          change[kLanes];
       for (int l = 0; l < kLanes; ++l) {
-        // Column-major: x[c * 3 + row]. Cofactor columns: c0 = x1 x x2, c1 = x2 x x0, c2 = x0 x x1.
-        const double a0 = x[0][l], a1 = x[1][l], a2 = x[2][l];
-        const double b0 = x[3][l], b1 = x[4][l], b2 = x[5][l];
-        const double c0 = x[6][l], c1 = x[7][l], c2 = x[8][l];
-        double cof[9];
-        cof[0] = b1 * c2 - b2 * c1;
-        cof[1] = b2 * c0 - b0 * c2;
-        cof[2] = b0 * c1 - b1 * c0;
-        cof[3] = c1 * a2 - c2 * a1;
-        cof[4] = c2 * a0 - c0 * a2;
-        cof[5] = c0 * a1 - c1 * a0;
-        cof[6] = a1 * b2 - a2 * b1;
-        cof[7] = a2 * b0 - a0 * b2;
-        cof[8] = a0 * b1 - a1 * b0;
-        const double inv_det = 1.0 / (a0 * cof[0] + a1 * cof[1] + a2 * cof[2]);
-        double cn = 0, xn = 0;
-        for (int k = 0; k < 9; ++k) cn += cof[k] * cof[k];
-        for (int k = 0; k < 9; ++k) xn += x[k][l] * x[k][l];
-        const double inv_norm2 = cn * (inv_det * inv_det);
-        const double gamma = it < 6 ? std::sqrt(std::sqrt(inv_norm2 / xn)) : 1.0;
-        const double ga = 0.5 * gamma;
-        const double gb = 0.5 * inv_det / gamma;
-        double change = 0;
-        for (int k = 0; k < 9; ++k) {
-          nx[k][l] = ga * x[k][l] + gb * cof[k];
-          const double d = nx[k][l] - x[k][l];
-          change += d * d;
+        cof[0][l] = x[4][l] * x[8][l] - x[5][l] * x[7][l];
+        cof[1][l] = x[5][l] * x[6][l] - x[3][l] * x[8][l];
+        cof[2][l] = x[3][l] * x[7][l] - x[4][l] * x[6][l];
+        cof[3][l] = x[7][l] * x[2][l] - x[8][l] * x[1][l];
+        cof[4][l] = x[8][l] * x[0][l] - x[6][l] * x[2][l];
+        cof[5][l] = x[6][l] * x[1][l] - x[7][l] * x[0][l];
+        cof[6][l] = x[1][l] * x[5][l] - x[2][l] * x[4][l];
+        cof[7][l] = x[2][l] * x[3][l] - x[0][l] * x[5][l];
+        cof[8][l] = x[0][l] * x[4][l] - x[1][l] * x[3][l];
+      }
+      alignas(32) double cn[kLanes] = {0, 0, 0, 0}, xn[kLanes] = {0, 0, 0, 0};
+      for (int k = 0; k < 9; ++k) {
+        for (int l = 0; l < kLanes; ++l) {
+          cn[l] += cof[k][l] * cof[k][l];
+          xn[l] += x[k][l] * x[k][l];
         }
-        stop[l] = 0.25 * inv_norm2 * change * change <= 1e-32 ? 1.0 : 0.0;
+      }
+      for (int l = 0; l < kLanes; ++l) {
+        inv_det[l] = 1.0 / (x[0][l] * cof[0][l] + x[1][l] * cof[1][l] + x[2][l] * cof[2][l]);
+        inv_norm2[l] = cn[l] * (inv_det[l] * inv_det[l]);
+        change[l] = 0;
+      }
+      // Frobenius scaling (Higham) for the first steps; plain Newton near convergence.
+      if (it < 6) {
+        for (int l = 0; l < kLanes; ++l) {
+          const double gamma = std::sqrt(std::sqrt(inv_norm2[l] / xn[l]));
+          ga[l] = 0.5 * gamma;
+          gb[l] = 0.5 * inv_det[l] / gamma;
+        }
+      } else {
+        for (int l = 0; l < kLanes; ++l) {
+          ga[l] = 0.5;
+          gb[l] = 0.5 * inv_det[l];
+        }
+      }
+      for (int k = 0; k < 9; ++k) {
+        for (int l = 0; l < kLanes; ++l) {
+          nx[k][l] = ga[l] * x[k][l] + gb[l] * cof[k][l];
+          const double d = nx[k][l] - x[k][l];
+          change[l] += d * d;
+        }
       }
       bool all = true;
       for (int l = 0; l < kLanes; ++l) {
         if (!done[l]) {
           for (int k = 0; k < 9; ++k) x[k][l] = nx[k][l];
-          if (stop[l] != 0) done[l] = true;
+          // Newton converges quadratically: a step of size d leaves an error of about
+          // |X^-1| d^2 / 2; stop once that is below 1e-16 (round-off level).
+          if (0.25 * inv_norm2[l] * change[l] * change[l] <= 1e-32) done[l] = true;
         }
         all = all && (done[l] || l >= m);
       }
