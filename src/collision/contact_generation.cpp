@@ -245,8 +245,8 @@ struct Builder {
   const Model& model;
   const State& state;
   const CollisionParams& params;
-  std::vector<PointContact> contacts;
-  std::vector<Kind> kinds;
+  std::vector<PointContact>& contacts;  // scratch kept across steps: no allocation once warm
+  std::vector<Kind>& kinds;
 
   void Add(const PointContact& c, Kind obstacle) {
     contacts.push_back(c);
@@ -1059,32 +1059,42 @@ void JoinFlags(const Model& model, const State& state, std::size_t b, double ban
   }
 }
 
-std::vector<Sweep> MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
-                              const CollisionParams& params, std::vector<ToolPrimitive>* prims,
-                              std::int32_t* substeps) {
-  *prims = ToolPrimitivesWorld(model, cur);
-  std::vector<ToolPrimitive> before =
-      prev.instrument == cur.instrument ? ToolPrimitivesWorld(model, prev) : *prims;
+// Fills *sweeps (reusing its storage) with the swept contact parts of one tool slot; *prims and
+// *before receive this step's and last step's primitives (sweeps point into *prims).
+void MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
+                const CollisionParams& params, std::vector<ToolPrimitive>* prims,
+                std::vector<ToolPrimitive>* before, std::vector<Sweep>* sweeps,
+                std::int32_t* substeps) {
+  ToolPrimitivesWorld(model, cur, prims);
+  if (prev.instrument == cur.instrument) {
+    ToolPrimitivesWorld(model, prev, before);
+  } else {
+    before->assign(prims->begin(), prims->end());
+  }
   double disp = 0;
   for (std::size_t j = 0; j < prims->size(); ++j) {
     for (int i = 0; i < (*prims)[j].core.n; ++i) {
-      disp = std::max(disp, ((*prims)[j].core.v[i] - before[j].core.v[i]).norm());
+      disp = std::max(disp, ((*prims)[j].core.v[i] - (*before)[j].core.v[i]).norm());
     }
   }
   const double step = params.sweep_fraction * params.alarm_distance_mm;
   const int k = std::clamp(static_cast<int>(std::ceil(disp / step)), 1, params.max_substeps);
   *substeps = k;
-  std::vector<Sweep> sweeps;
+  std::size_t used = 0;
   for (std::size_t j = 0; j < prims->size(); ++j) {
     if (!(*prims)[j].contacts) continue;
-    Sweep sw;
+    if (sweeps->size() <= used) sweeps->emplace_back();
+    Sweep& sw = (*sweeps)[used++];
     sw.prim = &(*prims)[j];
+    sw.sub.clear();
+    sw.sub_box.clear();
+    sw.box = Box{};
     for (int s = 0; s <= k; ++s) {
       Simplex core = (*prims)[j].core;
       if (s < k) {
         const double f = static_cast<double>(s) / k;
         for (int i = 0; i < core.n; ++i) {
-          core.v[i] = before[j].core.v[i] + f * ((*prims)[j].core.v[i] - before[j].core.v[i]);
+          core.v[i] = (*before)[j].core.v[i] + f * ((*prims)[j].core.v[i] - (*before)[j].core.v[i]);
         }
       }
       Box cb;
@@ -1094,9 +1104,8 @@ std::vector<Sweep> MakeSweeps(const Model& model, const ToolState& prev, const T
       sw.sub.push_back(core);
       sw.sub_box.push_back(cb);
     }
-    sweeps.push_back(std::move(sw));
   }
-  return sweeps;
+  sweeps->resize(used);  // shrinking keeps the capacity
 }
 
 }  // namespace
@@ -1173,15 +1182,21 @@ void Detect(const Model& model, const State& state,
             const std::array<ToolState, kToolSlots>& prev_tools, const CollisionParams& params,
             CollisionWorld* world, CollisionOutput* out) {
   SyncWorld(model, state, world);
-  Builder B{model, state, params, {}, {}};
-  B.contacts.reserve(out->contacts.capacity());
+  // Scratch kept across steps (no heap allocation in a steady-state step).
+  thread_local std::vector<PointContact> scratch_contacts;
+  thread_local std::vector<Kind> scratch_kinds;
+  thread_local std::array<std::vector<ToolPrimitive>, kToolSlots> prims, before;
+  thread_local std::array<std::vector<Sweep>, kToolSlots> slot_sweeps;
+  scratch_contacts.clear();
+  scratch_kinds.clear();
+  Builder B{model, state, params, scratch_contacts, scratch_kinds};
   out->bone_force_n.fill(Vec3::Zero());
   out->bone_touches.clear();
   for (int slot = 0; slot < kToolSlots; ++slot) {
     out->substeps[slot] = 0;
-    std::vector<ToolPrimitive> prims;
-    const std::vector<Sweep> sweeps = MakeSweeps(model, prev_tools[slot], state.tools[slot], params,
-                                                 &prims, &out->substeps[slot]);
+    std::vector<Sweep>& sweeps = slot_sweeps[slot];
+    MakeSweeps(model, prev_tools[slot], state.tools[slot], params, &prims[slot], &before[slot],
+               &sweeps, &out->substeps[slot]);
     for (std::size_t b = 0; b < world->soft.size(); ++b) {
       for (const Sweep& sw : sweeps) {
         ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);
@@ -1246,10 +1261,11 @@ void Detect(const Model& model, const State& state,
   }
   // Creation order never matters: sort by (tool, target, body, obstacle, feature) and, for
   // completeness, by the remaining values.
-  std::vector<std::size_t> order(B.contacts.size());
+  thread_local std::vector<std::size_t> order;
+  order.resize(B.contacts.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   // Lexicographic on (tool, target, body, obstacle kind, obstacle, nodes, weights, offset,
-  // normal), stopping at the first difference.
+  // normal, creation index), stopping at the first difference.
   auto less = [&](std::size_t i, std::size_t j) {
     const PointContact &a = B.contacts[i], &b = B.contacts[j];
     if (a.tool_slot != b.tool_slot) return a.tool_slot < b.tool_slot;
@@ -1268,7 +1284,7 @@ void Detect(const Model& model, const State& state,
     for (int k = 0; k < 3; ++k) {
       if (a.normal[k] != b.normal[k]) return a.normal[k] < b.normal[k];
     }
-    return false;
+    return i < j;  // creation order last: a total order, so an unstable sort is stable
   };
   // The leading fields (tool, target, body, obstacle kind, obstacle, first node) packed into one
   // integer whose order is theirs, so most comparisons are one integer compare; equal keys fall
@@ -1296,10 +1312,10 @@ void Detect(const Model& model, const State& state,
   // Contacts are mostly created in order already: sort only when needed.
   if (packed) {
     if (!std::is_sorted(order.begin(), order.end(), keyed_less)) {
-      std::stable_sort(order.begin(), order.end(), keyed_less);
+      std::sort(order.begin(), order.end(), keyed_less);  // in place: no buffer
     }
   } else if (!std::is_sorted(order.begin(), order.end(), less)) {
-    std::stable_sort(order.begin(), order.end(), less);
+    std::sort(order.begin(), order.end(), less);
   }
   out->contacts.clear();
   out->obstacle_kind.clear();

@@ -68,12 +68,14 @@ double MaxOpeningDeg(InstrumentKind kind) {
   }
 }
 
-std::vector<ToolPrimitive> InstrumentPrimitivesLocal(const InstrumentModel& m, double jaw) {
+void InstrumentPrimitivesLocal(const InstrumentModel& m, double jaw,
+                               std::vector<ToolPrimitive>* out_list) {
   const double shaft_r = 0.5 * m.shaft_diameter_mm;
   const double length = std::max(m.tip_length_mm, 1e-3);
   const double theta = (1.0 - std::clamp(jaw, 0.0, 1.0)) * MaxOpeningDeg(m.kind) * units::kDegToRad;
   const double tip_r = std::min(m.tip_radius_mm, shaft_r);
-  std::vector<ToolPrimitive> out;
+  std::vector<ToolPrimitive>& out = *out_list;
+  out.clear();
   switch (m.kind) {
     case InstrumentKind::kScissors:
     case InstrumentKind::kCutter:
@@ -133,18 +135,30 @@ std::vector<ToolPrimitive> InstrumentPrimitivesLocal(const InstrumentModel& m, d
   // The shaft runs from the end of the working part back to the handle.
   out.push_back(Capsule(ToolPart::kShaft, Vec3(0, 0, -length),
                         Vec3(0, 0, -std::max(m.shaft_length_mm, length)), shaft_r));
+}
+
+std::vector<ToolPrimitive> InstrumentPrimitivesLocal(const InstrumentModel& m, double jaw) {
+  std::vector<ToolPrimitive> out;
+  InstrumentPrimitivesLocal(m, jaw, &out);
   return out;
 }
 
-std::vector<ToolPrimitive> ToolPrimitivesWorld(const Model& model, const ToolState& tool) {
+void ToolPrimitivesWorld(const Model& model, const ToolState& tool,
+                         std::vector<ToolPrimitive>* prims) {
+  prims->clear();
   if (tool.instrument < 0 || tool.instrument >= static_cast<int>(model.instruments.size())) {
-    return {};
+    return;
   }
-  std::vector<ToolPrimitive> prims = InstrumentPrimitivesLocal(
-      model.instruments[static_cast<std::size_t>(tool.instrument)], tool.jaw);
-  for (ToolPrimitive& p : prims) {
+  InstrumentPrimitivesLocal(model.instruments[static_cast<std::size_t>(tool.instrument)], tool.jaw,
+                            prims);
+  for (ToolPrimitive& p : *prims) {
     for (int i = 0; i < p.core.n; ++i) p.core.v[i] = tool.pose.Apply(p.core.v[i]);
   }
+}
+
+std::vector<ToolPrimitive> ToolPrimitivesWorld(const Model& model, const ToolState& tool) {
+  std::vector<ToolPrimitive> prims;
+  ToolPrimitivesWorld(model, tool, &prims);
   return prims;
 }
 

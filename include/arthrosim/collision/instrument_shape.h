@@ -45,8 +45,14 @@ double MaxOpeningDeg(InstrumentKind kind);
 /// closed). The order and count depend only on the kind, never on jaw (so two poses of the same
 /// instrument can be interpolated primitive by primitive).
 std::vector<ToolPrimitive> InstrumentPrimitivesLocal(const InstrumentModel& instrument, double jaw);
+/// The same into *out (replacing its contents; no allocation once its capacity suffices).
+void InstrumentPrimitivesLocal(const InstrumentModel& instrument, double jaw,
+                               std::vector<ToolPrimitive>* out);
 
 /// The same primitives in world coordinates for a tool slot state; empty if nothing is inserted.
 std::vector<ToolPrimitive> ToolPrimitivesWorld(const Model& model, const ToolState& tool);
+/// The same into *out (replacing its contents; no allocation once its capacity suffices).
+void ToolPrimitivesWorld(const Model& model, const ToolState& tool,
+                         std::vector<ToolPrimitive>* out);
 
 }  // namespace arthrosim::collision
