@@ -49,7 +49,7 @@ Mat3 PolarRotation(const Mat3& f) {
 }
 
 void PolarRotations(const Mat3* f, Mat3* r, int count) {
-  constexpr int kLanes = 4;
+  constexpr int kLanes = 8;
   // Structure of arrays, one lane per matrix: the Newton steps of kLanes matrices run side by
   // side (vectorised). A lane is frozen once its own stop test passes, so its result does not
   // depend on its neighbours (nor on how the caller batches).
@@ -75,7 +75,7 @@ void PolarRotations(const Mat3* f, Mat3* r, int count) {
     for (int l = m; l < kLanes; ++l) {  // idle lanes: identity (converges at once)
       for (int k = 0; k < 9; ++k) x[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
     }
-    bool done[kLanes] = {false, false, false, false};
+    bool done[kLanes] = {};
     for (int it = 0; it < 30; ++it) {
       // Every operation is a loop over the lanes (innermost), so it compiles to packed SIMD.
       // Column-major: x[c * 3 + row]. Cofactor columns: c0 = x1 x x2, c1 = x2 x x0, c2 = x0 x x1.
@@ -92,7 +92,7 @@ void PolarRotations(const Mat3* f, Mat3* r, int count) {
         cof[7][l] = x[2][l] * x[3][l] - x[0][l] * x[5][l];
         cof[8][l] = x[0][l] * x[4][l] - x[1][l] * x[3][l];
       }
-      alignas(32) double cn[kLanes] = {0, 0, 0, 0}, xn[kLanes] = {0, 0, 0, 0};
+      alignas(32) double cn[kLanes] = {}, xn[kLanes] = {};
       for (int k = 0; k < 9; ++k) {
         for (int l = 0; l < kLanes; ++l) {
           cn[l] += cof[k][l] * cof[k][l];
