@@ -13,8 +13,7 @@ int g_threads = 1;
 void SetThreadCount(int threads) { g_threads = std::max(1, threads); }
 int ThreadCount() { return g_threads; }
 
-void ParallelFor(std::int64_t n, std::int64_t block,
-                 const std::function<void(std::int64_t, std::int64_t)>& body) {
+void ParallelFor(std::int64_t n, std::int64_t block, BlockBody body) {
   if (n <= 0) return;
   block = std::max<std::int64_t>(1, block);
   const std::int64_t blocks = (n + block - 1) / block;

@@ -3,7 +3,8 @@
 // never on the thread count, and every block writes only its own outputs; reductions are
 // combined in block order. So results are bit-identical for any number of threads.
 #include <cstdint>
-#include <functional>
+#include <type_traits>
+#include <utility>
 
 namespace arthrosim {
 
@@ -13,9 +14,27 @@ void SetThreadCount(int threads);
 /// Current thread count (>= 1).
 int ThreadCount();
 
+/// A non-owning reference to a callable body(begin, end): binding a lambda never allocates
+/// (std::function would for captures beyond its small buffer). Valid while the callable lives,
+/// which for a ParallelFor argument is the whole call.
+class BlockBody {
+ public:
+  template <typename F, typename = std::enable_if_t<!std::is_same_v<std::decay_t<F>, BlockBody>>>
+  BlockBody(F&& f)  // NOLINT(google-explicit-constructor): implicit from any callable
+      : object_(const_cast<void*>(static_cast<const void*>(&f))),
+        call_([](void* o, std::int64_t b, std::int64_t e) {
+          (*static_cast<std::remove_reference_t<F>*>(o))(b, e);
+        }) {}
+  void operator()(std::int64_t begin, std::int64_t end) const { call_(object_, begin, end); }
+
+ private:
+  void* object_;
+  void (*call_)(void*, std::int64_t, std::int64_t);
+};
+
 /// Calls body(begin, end) for fixed blocks of `block` items covering [0, n). Blocks may run
 /// concurrently; body must not write anything another block reads or writes.
-void ParallelFor(std::int64_t n, std::int64_t block,
-                 const std::function<void(std::int64_t, std::int64_t)>& body);
+/// With one thread it runs inline and allocates nothing.
+void ParallelFor(std::int64_t n, std::int64_t block, BlockBody body);
 
 }  // namespace arthrosim
