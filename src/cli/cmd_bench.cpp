@@ -139,11 +139,13 @@ void PrintSoftSuite(const Model& model, const std::string& beam_mesh) {
   fmt::print("soft tissue alone (CPU time per step):\n");
   line("idle", r.idle);
   line("driven", r.driven);
+  line("driven mf", r.driven_matrix_free);
   line("driven 4x", r.refined4);
   line("driven 16x", r.refined16);
   fmt::print(
       "soft_ms_median_idle={:.3f}\nsoft_ms_median_driven={:.3f}\nsoft_ms_mean_driven={:.3f}\n",
       r.idle.median_ms, r.driven.median_ms, r.driven.mean_ms);
+  fmt::print("soft_ms_median_driven_matrix_free={:.3f}\n", r.driven_matrix_free.median_ms);
   fmt::print("soft_ms_median_4x={:.3f}\nsoft_ms_median_16x={:.3f}\n", r.refined4.median_ms,
              r.refined16.median_ms);
   if (!have_beam) {

@@ -160,6 +160,7 @@ SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& opt
   RefineByCentroidSplits(&state, options.refine_levels);
   SoftSystem sys;
   if (options.refactor_iterations >= 0) sys.set_refactor_iterations(options.refactor_iterations);
+  sys.set_product(options.product);
   sys.Build(model, state);
   for (const SoftBodyState& b : state.soft_bodies) {
     r.nodes += static_cast<int>(b.x.cols());
@@ -256,6 +257,9 @@ FemBenchReport RunFemBenchSuite(const Model& model, const std::string& beam_mesh
   idle.drive_radius_mm = 0;
   r.idle = RunSoftBenchmark(model, idle, after_step);
   r.driven = RunSoftBenchmark(model, SoftBenchOptions{}, after_step);
+  SoftBenchOptions matrix_free;
+  matrix_free.product = SystemProduct::kMatrixFree;
+  r.driven_matrix_free = RunSoftBenchmark(model, matrix_free, after_step);
   SoftBenchOptions fine;
   fine.warmup_steps = 5;
   fine.steps = 10;

@@ -65,6 +65,7 @@ struct SoftBenchOptions {
   double drive_radius_mm = 3.0;
   double drive_period_s = 1.0;
   int refactor_iterations = -1;  ///< SoftSystem::set_refactor_iterations; -1 = its default
+  SystemProduct product = SystemProduct::kAssembled;  ///< how CG applies the system matrix
 };
 
 struct SoftBenchResult {
@@ -90,12 +91,13 @@ SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& opt
 
 /// Everything `arthrosim bench SCENARIO` reports for the soft tissue (~5-10 s on one core).
 struct FemBenchReport {
-  SoftBenchResult idle;              ///< the scenario as is (hangs under gravity), 100 steps
-  SoftBenchResult driven;            ///< with the SoftBenchOptions default drive, 100 steps
-  SoftBenchResult refined4;          ///< driven, 4x tets (RefineByCentroidSplits 1), 10 steps
-  SoftBenchResult refined16;         ///< driven, 16x tets (RefineByCentroidSplits 2), 10 steps
-  double beam_ms_per_step = 0;       ///< median CPU ms per step, beam_2.5 (3 573 tets)
-  double beam_mean_ms_per_step = 0;  ///< mean (with its refactorisations)
+  SoftBenchResult idle;                ///< the scenario as is (hangs under gravity), 100 steps
+  SoftBenchResult driven;              ///< with the SoftBenchOptions default drive, 100 steps
+  SoftBenchResult driven_matrix_free;  ///< the same with the element-by-element product
+  SoftBenchResult refined4;            ///< driven, 4x tets (RefineByCentroidSplits 1), 10 steps
+  SoftBenchResult refined16;           ///< driven, 16x tets (RefineByCentroidSplits 2), 10 steps
+  double beam_ms_per_step = 0;         ///< median CPU ms per step, beam_2.5 (3 573 tets)
+  double beam_mean_ms_per_step = 0;    ///< mean (with its refactorisations)
   double beam_mean_cg_iterations = 0;
   double beam_settled_error_pct = 0;  ///< settled vs static tip deflection after 2 s
 };
