@@ -101,6 +101,13 @@ Vec3 EndPosition(const State& state, const ConstraintEnd& end) {
 
 SpringSet BuildPointSprings(const State& state) {
   SpringSet out;
+  BuildPointSprings(state, &out);
+  return out;
+}
+
+void BuildPointSprings(const State& state, SpringSet* springs) {
+  SpringSet& out = *springs;
+  out.clear();
   for (const SpringConstraint& c : state.constraints) {
     const ConstraintEnd* ends[2] = {&c.a, &c.b};
     for (int side = 0; side < 2; ++side) {
@@ -124,7 +131,6 @@ SpringSet BuildPointSprings(const State& state) {
       out.push_back(ps);
     }
   }
-  return out;
 }
 
 int RemoveConstraintsOnDeadThreadNodes(State* state) {

@@ -30,7 +30,7 @@ void DetectContacts(const Model& model, const State& state,
 // Runtime constraints (grasps, stitches, knots, anchors) become springs for the solvers, each
 // deformable end anchored at the other end's start-of-step position (staggered coupling).
 void BuildConstraintSprings(const State& state, Workspace* ws) {
-  ws->springs = physics::BuildPointSprings(state);
+  physics::BuildPointSprings(state, &ws->springs);
 }
 
 // Soft tissue: one linearised implicit Euler step of every soft body (FEM + CG).

@@ -38,6 +38,8 @@ Vec3 EndPosition(const State& state, const ConstraintEnd& end);
 /// One PointSpring per deformable end (soft body or thread) of every constraint, in id order
 /// (side a before side b), anchored at the other end's current position.
 SpringSet BuildPointSprings(const State& state);
+/// The same into *springs (cleared first; its capacity is reused, so a step need not allocate).
+void BuildPointSprings(const State& state, SpringSet* springs);
 
 /// Removes constraints with an end on a dead thread node (after a cut); returns how many.
 int RemoveConstraintsOnDeadThreadNodes(State* state);
