@@ -20,4 +20,9 @@ Box3 SweptSegmentBox(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3&
 /// makes the result independent of input order ties and of the platform's sort.
 std::vector<std::array<int, 2>> OverlappingPairs(const std::vector<Box3>& boxes);
 
+/// Same pairs written into *pairs, with *order as sort scratch (no allocation once both have
+/// grown to the sizes needed).
+void OverlappingPairs(const std::vector<Box3>& boxes, std::vector<int>* order,
+                      std::vector<std::array<int, 2>>* pairs);
+
 }  // namespace arthrosim::physics
