@@ -1,6 +1,5 @@
 #include "arthrosim/physics/thread_band_solver.h"
 
-#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 
@@ -32,25 +31,74 @@ void AddBandedBlock(int row, int col, const Mat3& h, BandedBlockMatrix* a) {
   }
 }
 
+namespace {
+
+// 3x3 Cholesky by hand (Eigen's generic triangular kernels dominate at this size). Returns the
+// smallest pivot (diagonal of L) or -1 if a pivot is not positive.
+double Cholesky3(const Mat3& a, Mat3* l) {
+  l->setZero();
+  const double d0 = a(0, 0);
+  if (!(d0 > 0)) return -1;
+  const double l00 = std::sqrt(d0);
+  const double l10 = a(1, 0) / l00, l20 = a(2, 0) / l00;
+  const double d1 = a(1, 1) - l10 * l10;
+  if (!(d1 > 0)) return -1;
+  const double l11 = std::sqrt(d1);
+  const double l21 = (a(2, 1) - l20 * l10) / l11;
+  const double d2 = a(2, 2) - l20 * l20 - l21 * l21;
+  if (!(d2 > 0)) return -1;
+  const double l22 = std::sqrt(d2);
+  (*l)(0, 0) = l00;
+  (*l)(1, 0) = l10;
+  (*l)(2, 0) = l20;
+  (*l)(1, 1) = l11;
+  (*l)(2, 1) = l21;
+  (*l)(2, 2) = l22;
+  return std::min({l00, l11, l22});
+}
+
+// Solves L y = b (L lower triangular 3x3).
+Vec3 Forward3(const Mat3& l, const Vec3& b) {
+  const double y0 = b(0) / l(0, 0);
+  const double y1 = (b(1) - l(1, 0) * y0) / l(1, 1);
+  const double y2 = (b(2) - l(2, 0) * y0 - l(2, 1) * y1) / l(2, 2);
+  return Vec3(y0, y1, y2);
+}
+
+// Solves L^T x = y.
+Vec3 Backward3(const Mat3& l, const Vec3& y) {
+  const double x2 = y(2) / l(2, 2);
+  const double x1 = (y(1) - l(2, 1) * x2) / l(1, 1);
+  const double x0 = (y(0) - l(1, 0) * x1 - l(2, 0) * x2) / l(0, 0);
+  return Vec3(x0, x1, x2);
+}
+
+// B = A L^-T, row by row (row r of B solves L b = row r of A).
+Mat3 RightSolveLT(const Mat3& l, const Mat3& a) {
+  Mat3 b;
+  for (int r = 0; r < 3; ++r) b.row(r) = Forward3(l, a.row(r).transpose()).transpose();
+  return b;
+}
+
+}  // namespace
+
 bool FactorBanded(const std::vector<double>& min_pivot, BandedBlockMatrix* a) {
   // Block Cholesky A = L L^T: the same arithmetic as scalar Cholesky, so it stays accurate on
   // a chain whose axial stiffness exceeds its inertia by 1e10 (an explicit D^-1 would not).
   for (int i = 0; i < a->n; ++i) {
-    Eigen::LLT<Mat3> llt(a->diag[i]);  // diag[i] holds the Schur complement by now
-    if (llt.info() != Eigen::Success) return false;
-    const Mat3 lii = llt.matrixL();
-    const double piv = std::min({lii(0, 0), lii(1, 1), lii(2, 2)});
+    Mat3 lii;
+    const double piv = Cholesky3(a->diag[i], &lii);  // diag[i] holds the Schur complement
     if (!(piv * piv > min_pivot[i])) return false;
     a->diag[i] = lii;
-    const Mat3 b1 = lii.triangularView<Eigen::Lower>().solve(a->sub1[i].transpose()).transpose();
-    const Mat3 b2 = lii.triangularView<Eigen::Lower>().solve(a->sub2[i].transpose()).transpose();
+    const Mat3 b1 = RightSolveLT(lii, a->sub1[i]);
+    const Mat3 b2 = RightSolveLT(lii, a->sub2[i]);
     a->sub1[i] = b1;
     a->sub2[i] = b2;
     if (i + 1 < a->n) {
-      a->diag[i + 1] -= b1 * b1.transpose();
+      a->diag[i + 1].noalias() -= b1 * b1.transpose();
       if (i + 2 < a->n) {
-        a->diag[i + 2] -= b2 * b2.transpose();
-        a->sub1[i + 1] -= b2 * b1.transpose();
+        a->diag[i + 2].noalias() -= b2 * b2.transpose();
+        a->sub1[i + 1].noalias() -= b2 * b1.transpose();
       }
     }
   }
@@ -65,13 +113,13 @@ void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x) {
     Vec3 y = CMap(b + 3 * i);
     if (i >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
     if (i >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
-    Map(x + 3 * i) = a.diag[i].triangularView<Eigen::Lower>().solve(y);
+    Map(x + 3 * i) = Forward3(a.diag[i], y);
   }
   for (int i = n - 1; i >= 0; --i) {  // L^T x = y
     Vec3 z = Map(x + 3 * i);
     if (i + 1 < n) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
     if (i + 2 < n) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
-    Map(x + 3 * i) = a.diag[i].transpose().triangularView<Eigen::Upper>().solve(z);
+    Map(x + 3 * i) = Backward3(a.diag[i], z);
   }
 }
 

@@ -1,7 +1,6 @@
 #include "arthrosim/physics/thread_chain.h"
 
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -15,51 +14,8 @@ namespace arthrosim::physics {
 
 namespace {
 
-// A term acts on y = sum_k w_k x_k over up to four nodes (global indices).
-//   kPlane:  0.5 k max(0, offset - n.y)^2           (contacts; self contact uses y = p - q)
-//   kSpring: 0.5 k (|y - anchor| - length)^2        (segments, point springs, bending with L = 0)
-//   kLimit:  0.5 k max(0, |y - anchor| - length)^2  (speed barrier: node within vmax dt of x0)
-struct Term {
-  enum class Kind : std::uint8_t { kPlane, kSpring, kLimit };
-  Kind kind = Kind::kSpring;
-  int count = 0;
-  std::array<int, 4> node{-1, -1, -1, -1};
-  std::array<double, 4> w{0, 0, 0, 0};
-  double k = 0;             // mN/mm
-  double k_compress = -1;   // spring stiffness when shorter than its length; < 0 = same as k
-  Vec3 vec = Vec3::Zero();  // normal (plane) or anchor (spring)
-  double scalar = 0;        // offset (plane) or rest length (spring)
-};
-
-struct SegmentRef {
-  int thread = 0;
-  int seg = 0;  // segment index within the thread (nodes seg, seg + 1)
-  int n0 = 0;   // global node indices
-  int n1 = 0;
-};
-
-struct ContactPair {
-  int a = 0, b = 0;  // indices into the segment list, a < b
-};
-
-// Everything one step needs, in global node numbering (threads concatenated).
-struct System {
-  int num_nodes = 0;
-  std::vector<int> offset;  // first global node of each thread
-  Points x0, v0;
-  std::vector<int> dof;  // free-node index or -1 (fixed / dead)
-  std::vector<std::uint8_t> alive;
-  std::vector<double> mass;     // kg
-  std::vector<double> inertia;  // m (1 + alpha dt) / dt^2
-  std::vector<SegmentRef> segments;
-  std::vector<double> seg_diameter;
-  std::vector<Term> fixed_terms;              // stretch, bending, external contacts, springs
-  std::vector<Term> pair_terms;               // segment-segment contacts
-  std::vector<std::array<int, 2>> pair_keys;  // segment pairs that own a pair term (sorted)
-  int num_free = 0;
-  double dt = 0;
-  Vec3 gravity = Vec3::Zero();
-};
+using Term = ThreadTerm;
+using System = ThreadScratch;
 
 Vec3 TermY(const Term& t, const Points& x) {
   Vec3 y = Vec3::Zero();
@@ -108,15 +64,12 @@ double TermEval(const Term& t, const Vec3& y, Vec3* g, Mat3* h) {
   return 0.5 * k * ext * ext;
 }
 
-using Triplet = Eigen::Triplet<double>;
+// Stretch energy 0.5 k(c) c^2 of segment j, c = l - L (stiffness k_compress when c < 0).
+double StretchEnergy(const Term& t, const Points& x) {
+  const double c = (x.col(t.node[1]) - x.col(t.node[0])).norm() - t.scalar;
+  return 0.5 * (c < 0 ? t.k_compress : t.k) * c * c;
+}
 
-// Residual and Jacobian of the KKT system in (free dofs, stretch multipliers):
-//   r_x = M~ (x - x0) - M (v0 / dt + g) + grad U_terms + sum_j lambda_j grad c_j
-//   r_j = c_j(x) - lambda_j / k_j
-//   K   = [ H + sum_j max(lambda_j, 0) hess c_j    J^T ]
-//         [ J                                    -1/k ]
-// H is positive definite (masses), the compliance block negative: the matrix is
-// quasi-definite, so LDL^T exists without pivoting for any ordering.
 double TotalEnergy(const System& s, const Points& x) {
   double e = 0;
   for (int i = 0; i < s.num_nodes; ++i) {
@@ -125,86 +78,356 @@ double TotalEnergy(const System& s, const Points& x) {
     e += 0.5 * s.inertia[i] * dx.squaredNorm() -
          s.mass[i] * (dx.dot(s.v0.col(i)) / s.dt + dx.dot(s.gravity));
   }
+  for (const Term& t : s.stretch_terms) e += StretchEnergy(t, x);
   for (const std::vector<Term>* list : {&s.fixed_terms, &s.pair_terms})
     for (const Term& t : *list) e += TermEval(t, TermY(t, x), nullptr, nullptr);
   return e;
 }
 
-void Assemble(const System& s, const Points& x, Eigen::VectorXd* grad, std::vector<Triplet>* trip) {
-  grad->setZero(3 * s.num_free);
-  trip->clear();
-  for (int i = 0; i < s.num_nodes; ++i) {
-    const int d = s.dof[i];
-    if (d < 0) continue;
-    const Vec3 dx = x.col(i) - s.x0.col(i);
-    grad->segment<3>(3 * d) += s.inertia[i] * dx - s.mass[i] * (s.v0.col(i) / s.dt + s.gravity);
-    for (int c = 0; c < 3; ++c) trip->emplace_back(3 * d + c, 3 * d + c, s.inertia[i]);
+// ---- Newton matrix: banded part (inertia, stretch, bending, point contacts and springs on
+// neighbouring nodes) plus off-band rank-1 columns (segment-segment contacts), solved with the
+// banded LDL^T and a Woodbury capacitance matrix.
+
+void AddColumn(System* s, const Term& t, const Vec3& dir) {
+  for (int k = 0; k < 4; ++k) {
+    s->cols_node.push_back(k < t.count ? t.node[k] : -1);
+    s->cols_node_w.push_back(k < t.count ? t.w[k] : 0.0);
+  }
+  s->cols_dir.push_back(dir);
+}
+
+// Adds the Hessian h (wrt y) of term t to the band, or as columns if it spans more than the band.
+void AddTermHessian(System* s, const Term& t, const Mat3& h) {
+  int lo = t.node[0], hi = t.node[0];
+  for (int k = 1; k < t.count; ++k) {
+    lo = std::min(lo, t.node[k]);
+    hi = std::max(hi, t.node[k]);
+  }
+  if (hi - lo <= 2) {
+    for (int a = 0; a < t.count; ++a) {
+      if (s->dof[t.node[a]] < 0) continue;
+      for (int b = 0; b < t.count; ++b) {
+        if (s->dof[t.node[b]] < 0 || t.node[a] < t.node[b]) continue;
+        const Mat3 hab = (t.w[a] * t.w[b]) * h;
+        if (t.node[a] > t.node[b])
+          AddBandedBlock(t.node[a], t.node[b], hab, &s->band);
+        else
+          s->band.diag[t.node[a]] += hab;
+      }
+    }
+    return;
+  }
+  // Off-band: h = sum_i e_i v_i v_i^T with e_i >= 0 (h is symmetric positive semi-definite).
+  if (t.kind == Term::Kind::kPlane) {
+    AddColumn(s, t, std::sqrt(t.k) * t.vec);
+    return;
+  }
+  Eigen::SelfAdjointEigenSolver<Mat3> eig(h);
+  for (int i = 0; i < 3; ++i)
+    if (eig.eigenvalues()(i) > 0)
+      AddColumn(s, t, std::sqrt(eig.eigenvalues()(i)) * eig.eigenvectors().col(i));
+}
+
+// u_c^T v for column c and a 3 n vector v.
+double ColumnDot(const System& s, int c, const double* v) {
+  double r = 0;
+  for (int k = 0; k < 4; ++k) {
+    const int node = s.cols_node[4 * c + k];
+    if (node < 0 || s.dof[node] < 0) continue;
+    r += s.cols_node_w[4 * c + k] * s.cols_dir[c].dot(Eigen::Map<const Vec3>(v + 3 * node));
+  }
+  return r;
+}
+
+// Solves (B + U U^T) step = rhs, B factored in s->band; U = the off-band columns.
+void SolveWithColumns(System* s) {
+  const int n3 = 3 * s->num_nodes;
+  SolveBanded(s->band, s->rhs.data(), s->step.data());
+  const int m = static_cast<int>(s->cols_dir.size());
+  if (m == 0) return;
+  s->cols_v.assign(static_cast<std::size_t>(m) * n3, 0.0);
+  for (int c = 0; c < m; ++c) {
+    double* v = s->cols_v.data() + static_cast<std::size_t>(c) * n3;
+    for (int k = 0; k < 4; ++k) {
+      const int node = s->cols_node[4 * c + k];
+      if (node < 0 || s->dof[node] < 0) continue;
+      Eigen::Map<Vec3>(v + 3 * node) += s->cols_node_w[4 * c + k] * s->cols_dir[c];
+    }
+    SolveBanded(s->band, v, v);
+  }
+  // Capacitance S = I + U^T B^-1 U (symmetric positive definite), dense Cholesky in place.
+  s->cap_s.assign(static_cast<std::size_t>(m) * m, 0.0);
+  s->cap_y.assign(m, 0.0);
+  double* S = s->cap_s.data();
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b <= a; ++b) {
+      S[a * m + b] = ColumnDot(*s, a, s->cols_v.data() + static_cast<std::size_t>(b) * n3);
+      if (a == b) S[a * m + b] += 1.0;
+    }
+    s->cap_y[a] = ColumnDot(*s, a, s->step.data());
+  }
+  for (int j = 0; j < m; ++j) {
+    double d = S[j * m + j];
+    for (int k = 0; k < j; ++k) d -= S[j * m + k] * S[j * m + k];
+    d = std::sqrt(std::max(d, 1e-300));
+    S[j * m + j] = d;
+    for (int i = j + 1; i < m; ++i) {
+      double v = S[i * m + j];
+      for (int k = 0; k < j; ++k) v -= S[i * m + k] * S[j * m + k];
+      S[i * m + j] = v / d;
+    }
+  }
+  double* y = s->cap_y.data();
+  for (int i = 0; i < m; ++i) {
+    for (int k = 0; k < i; ++k) y[i] -= S[i * m + k] * y[k];
+    y[i] /= S[i * m + i];
+  }
+  for (int i = m - 1; i >= 0; --i) {
+    for (int k = i + 1; k < m; ++k) y[i] -= S[k * m + i] * y[k];
+    y[i] /= S[i * m + i];
+  }
+  for (int c = 0; c < m; ++c) {
+    const double* v = s->cols_v.data() + static_cast<std::size_t>(c) * n3;
+    for (int i = 0; i < n3; ++i) s->step[i] -= y[c] * v[i];
+  }
+}
+
+// Builds the Newton system at x and solves it into s->step. Stretch terms use the multipliers
+// s->lambda for their transverse (geometric) stiffness: lambda / l (I - u u^T), the Hessian of
+// the Lagrangian of the stretch constraints (SQP), which stays right when a Newton step rotates
+// a segment, where the primal k (1 - L / l) explodes. With allow_negative, compressed segments
+// keep their negative geometric term (exact Hessian; a slack chain then converges
+// quadratically instead of linearly); the caller retries without it if the factorisation finds
+// the matrix indefinite. Contact planes and speed barriers use s->switch_active as their activity.
+// Fills s->grad with the gradient of the energy at x (the true one, independent of the activity
+// model).
+bool BuildAndSolve(System* s, const Points& x, bool allow_negative) {
+  const int n = s->num_nodes;
+  ResetBanded(n, &s->band);
+  s->rhs.assign(3 * n, 0.0);
+  s->grad.assign(3 * n, 0.0);
+  s->step.resize(3 * n);
+  s->cols_node.clear();
+  s->cols_node_w.clear();
+  s->cols_dir.clear();
+  for (int i = 0; i < n; ++i) {
+    if (s->dof[i] < 0) {
+      s->band.diag[i] = Mat3::Identity();
+      continue;
+    }
+    const Vec3 dx = x.col(i) - s->x0.col(i);
+    const Vec3 g = s->inertia[i] * dx - s->mass[i] * (s->v0.col(i) / s->dt + s->gravity);
+    Eigen::Map<Vec3>(s->grad.data() + 3 * i) += g;
+    s->band.diag[i] += s->inertia[i] * Mat3::Identity();
+  }
+  auto add_grad = [&](const Term& t, const Vec3& g, std::vector<double>* out) {
+    for (int a = 0; a < t.count; ++a)
+      if (s->dof[t.node[a]] >= 0) Eigen::Map<Vec3>(out->data() + 3 * t.node[a]) += t.w[a] * g;
+  };
+  for (std::size_t j = 0; j < s->stretch_terms.size(); ++j) {
+    const Term& t = s->stretch_terms[j];
+    const Vec3 e = x.col(t.node[1]) - x.col(t.node[0]);
+    const double l = std::max(e.norm(), 1e-12);
+    const Vec3 u = e / l;
+    const double c = l - t.scalar;
+    const double k = c < 0 ? t.k_compress : t.k;
+    const Vec3 g = k * c * u;
+    add_grad(t, g, &s->grad);
+    const double lam = allow_negative ? s->lambda[j] : std::max(0.0, s->lambda[j]);
+    const Mat3 uu = u * u.transpose();
+    AddTermHessian(s, t, k * uu + (lam / l) * (Mat3::Identity() - uu));
   }
   Vec3 g;
   Mat3 h;
-  for (const std::vector<Term>* list : {&s.fixed_terms, &s.pair_terms}) {
+  int sw = 0;
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
     for (const Term& t : *list) {
-      TermEval(t, TermY(t, x), &g, &h);
-      if (h.isZero(0)) continue;
-      for (int a = 0; a < t.count; ++a) {
-        const int da = s.dof[t.node[a]];
-        if (da < 0) continue;
-        grad->segment<3>(3 * da) += t.w[a] * g;
-        for (int b = 0; b < t.count; ++b) {
-          const int db = s.dof[t.node[b]];
-          if (db < 0) continue;
-          const double wab = t.w[a] * t.w[b];
-          for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c)
-              if (h(r, c) != 0) trip->emplace_back(3 * da + r, 3 * db + c, wab * h(r, c));
-        }
+      const Vec3 y = TermY(t, x);
+      TermEval(t, y, &g, &h);
+      add_grad(t, g, &s->grad);
+      if (t.kind == Term::Kind::kSpring) {
+        if (!h.isZero(0)) AddTermHessian(s, t, h);
+        continue;
+      }
+      // Switching term: the model uses its predicted activity; rhs collects model - true
+      // gradient.
+      const int a = sw++;
+      if (!s->switch_active[a]) {
+        add_grad(t, -g, &s->rhs);
+        continue;
+      }
+      if (t.kind == Term::Kind::kPlane) {
+        // Exact piecewise-quadratic model k (offset - n.y), also when y is outside now.
+        const double pen = t.scalar - t.vec.dot(y);
+        add_grad(t, -t.k * pen * t.vec - g, &s->rhs);
+        AddTermHessian(s, t, t.k * t.vec * t.vec.transpose());
+      } else if (!h.isZero(0)) {
+        AddTermHessian(s, t, h);  // speed barrier active now: its own Hessian
+      } else {
+        // Speed barrier inactive now, active at the predicted point: the tangent plane of
+        // the sphere there, 0.5 k max(0, n.(y - x0) - r)^2.
+        const Vec3& nd = s->switch_dir[a];
+        add_grad(t, t.k * (nd.dot(y - t.vec) - t.scalar) * nd, &s->rhs);
+        AddTermHessian(s, t, t.k * nd * nd.transpose());
       }
     }
+  }
+  for (int i = 0; i < 3 * n; ++i) s->rhs[i] = -(s->rhs[i] + s->grad[i]);
+  if (!FactorBanded(s->min_pivot, &s->band)) return false;
+  SolveWithColumns(s);
+  for (double v : s->step)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+// Predicted activity of every switching term (contact planes, speed barriers) at x + step;
+// returns true if any changed.
+bool UpdateSwitchActivity(System* s, const Points& x) {
+  bool changed = false;
+  int sw = 0;
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
+    for (const Term& t : *list) {
+      if (t.kind == Term::Kind::kSpring) continue;
+      Vec3 y = TermY(t, x);
+      for (int k = 0; k < t.count; ++k)
+        if (s->dof[t.node[k]] >= 0)
+          y += t.w[k] * Eigen::Map<const Vec3>(s->step.data() + 3 * t.node[k]);
+      std::int8_t act = 0;
+      if (t.kind == Term::Kind::kPlane) {
+        act = t.scalar - t.vec.dot(y) > 0 ? 1 : 0;
+      } else {
+        const Vec3 d = y - t.vec;
+        const double l = d.norm();
+        act = l > t.scalar ? 1 : 0;
+        if (act) s->switch_dir[sw] = d / l;
+      }
+      if (act != s->switch_active[sw]) changed = true;
+      s->switch_active[sw++] = act;
+    }
+  }
+  return changed;
+}
+
+void SetSwitchActivityAt(System* s, const Points& x) {
+  s->switch_active.clear();
+  s->switch_dir.clear();
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
+    for (const Term& t : *list) {
+      if (t.kind == Term::Kind::kSpring) continue;
+      const Vec3 y = TermY(t, x);
+      const bool act = t.kind == Term::Kind::kPlane ? t.scalar - t.vec.dot(y) > 0
+                                                    : (y - t.vec).norm() > t.scalar;
+      s->switch_active.push_back(act ? 1 : 0);
+      s->switch_dir.push_back(Vec3::Zero());
+    }
+  }
+}
+
+int ProjectLengths(System* s, bool limit_only, int passes, Points* x);
+
+// Stiffness of a stretch term at force lambda (compression is soft: a braid buckles).
+double StretchStiffness(const Term& t, double lambda) { return lambda < 0 ? t.k_compress : t.k; }
+
+void InitLambda(System* s, const Points& x) {
+  s->lambda.resize(s->stretch_terms.size());
+  for (std::size_t j = 0; j < s->stretch_terms.size(); ++j) {
+    const Term& t = s->stretch_terms[j];
+    const double c = (x.col(t.node[1]) - x.col(t.node[0])).norm() - t.scalar;
+    s->lambda[j] = (c < 0 ? t.k_compress : t.k) * c;
   }
 }
 
 // Newton with a backtracking (Armijo) line search on the incremental potential, from *x.
 // Every accepted iterate lowers the energy, so a step that is cut short by the iteration limit
-// is still stable. Returns the number of iterations.
-int NewtonSolve(const System& s, const ThreadSolverParams& p, Points* x) {
-  if (s.num_free == 0) return 0;
-  Eigen::VectorXd grad;
-  std::vector<Triplet> trip;
-  Eigen::SparseMatrix<double> hess(3 * s.num_free, 3 * s.num_free);
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
-  Points trial = *x;
-  double e0 = TotalEnergy(s, *x);
+// is still stable. Each iteration solves the model in which contact planes are exactly
+// piecewise quadratic: the activity of the planes is predicted from the step and the system
+// re-solved until it no longer changes (primal-dual active set), so Newton does not discover
+// the contacts of a thread landing on tissue one per iteration. Returns the iteration count;
+// *converged tells whether the update fell below the tolerance.
+int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converged) {
+  *converged = true;
+  if (s->num_free == 0) return 0;
+  const int n3 = 3 * s->num_nodes;
+  InitLambda(s, *x);
+  s->lambda_new.resize(s->lambda.size());
+  double e0 = TotalEnergy(*s, *x);
   int it = 0;
+  *converged = false;
   while (it < p.max_newton_iterations) {
     ++it;
-    Assemble(s, *x, &grad, &trip);
-    hess.setFromTriplets(trip.begin(), trip.end());
-    // The pattern changes with contact activity, so order and factorise every iteration (the
-    // systems are a few hundred unknowns; this is not the cost that matters).
-    ldlt.compute(hess);
-    if (ldlt.info() != Eigen::Success) break;
-    const Eigen::VectorXd step = ldlt.solve(-grad);
-    if (!step.allFinite()) break;
-    const double step_max = step.cwiseAbs().maxCoeff();
-    const double slope = grad.dot(step);
+    // Pass 0: activity at x (plain Newton step, a descent direction). Further passes: activity
+    // predicted at x + step, kept only if it becomes consistent (then the step minimises the
+    // exact piecewise-quadratic contact model, also a descent direction).
+    SetSwitchActivityAt(s, *x);
+    bool negative = true;
+    auto solve = [&]() {
+      if (negative && BuildAndSolve(s, *x, true)) return true;
+      negative = false;
+      return BuildAndSolve(s, *x, false);
+    };
+    if (!solve()) break;
+    s->step0 = s->step;
+    bool consistent = !UpdateSwitchActivity(s, *x);
+    for (int pass = 1; !consistent && pass < p.max_active_set_passes; ++pass) {
+      if (!solve()) break;
+      consistent = !UpdateSwitchActivity(s, *x);
+    }
+    if (!consistent) s->step = s->step0;  // s->grad is the true gradient in every pass
+    double slope = 0, step_max = 0;
+    for (int i = 0; i < n3; ++i) {
+      slope += s->grad[i] * s->step[i];
+      step_max = std::max(step_max, std::abs(s->step[i]));
+    }
+    // Multipliers of the linearised stretch constraints: k (c + u . (dx1 - dx0)).
+    for (std::size_t j = 0; j < s->stretch_terms.size(); ++j) {
+      const Term& t = s->stretch_terms[j];
+      const Vec3 e = x->col(t.node[1]) - x->col(t.node[0]);
+      const double l = std::max(e.norm(), 1e-12);
+      const Vec3 de = Eigen::Map<const Vec3>(s->step.data() + 3 * t.node[1]) -
+                      Eigen::Map<const Vec3>(s->step.data() + 3 * t.node[0]);
+      const double c = l - t.scalar + e.dot(de) / l;
+      s->lambda_new[j] = (c < 0 ? t.k_compress : t.k) * c;
+    }
     double alpha = 1.0;
     bool accepted = false;
     double e1 = e0;
+    const int m = static_cast<int>(s->stretch_terms.size());
+    s->tri_target.resize(m);
+    s->tri_active.resize(m);
     for (int ls = 0; ls < 30; ++ls) {
-      trial = *x;
-      for (int i = 0; i < s.num_nodes; ++i)
-        if (s.dof[i] >= 0) trial.col(i) += alpha * step.segment<3>(3 * s.dof[i]);
-      e1 = TotalEnergy(s, trial);
-      if (e1 <= e0 + 1e-4 * alpha * slope) {
+      s->trial = *x;
+      for (int i = 0; i < s->num_nodes; ++i)
+        if (s->dof[i] >= 0)
+          s->trial.col(i) += alpha * Eigen::Map<const Vec3>(s->step.data() + 3 * i);
+      // Second-order correction: a straight step rotates stiff segments and so stretches
+      // them to second order, which the energy would reject (Maratos effect; a falling chain
+      // would crawl). Project the lengths onto their linearised values l + alpha u.(dx1 - dx0).
+      for (int j = 0; j < m; ++j) {
+        const double lam = s->lambda[j] + alpha * (s->lambda_new[j] - s->lambda[j]);
+        s->tri_target[j] =
+            s->stretch_terms[j].scalar + lam / StretchStiffness(s->stretch_terms[j], lam);
+        s->tri_active[j] = 1;
+      }
+      ProjectLengths(s, false, 2, &s->trial);
+      e1 = TotalEnergy(*s, s->trial);
+      if (e1 <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
         accepted = true;
         break;
       }
       alpha *= 0.5;
     }
-    if (!accepted) break;  // rounding floor: the energy cannot resolve the step any more
-    *x = trial;
+    if (!accepted) {  // rounding floor: the energy cannot resolve the step any more
+      *converged = step_max < 1e3 * p.newton_tolerance_mm;
+      break;
+    }
+    for (std::size_t j = 0; j < s->stretch_terms.size(); ++j)
+      s->lambda[j] += alpha * (s->lambda_new[j] - s->lambda[j]);
+    std::swap(*x, s->trial);
     e0 = e1;
-    if (alpha * step_max < p.newton_tolerance_mm) break;
+    if (alpha * step_max < p.newton_tolerance_mm) {
+      *converged = true;
+      break;
+    }
   }
   return it;
 }
@@ -227,10 +450,12 @@ bool PointTerm(const System& s, int thread, const std::array<std::int32_t, 4>& n
   return t->count > 0;
 }
 
-Term SegmentPairTerm(const System& s, int a, int b, const Points& x, double stiffness,
-                     const SegmentClosest& cp) {
-  const SegmentRef& sa = s.segments[a];
-  const SegmentRef& sb = s.segments[b];
+// Contact term for segments a, b from their closest points cp; a0..b1 are the end points the
+// closest points were computed on (used only for the normal of touching segments).
+Term SegmentPairTerm(const System& s, int a, int b, double stiffness, const SegmentClosest& cp,
+                     const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1) {
+  const ThreadSegmentRef& sa = s.segments[a];
+  const ThreadSegmentRef& sb = s.segments[b];
   Term t;
   t.kind = Term::Kind::kPlane;
   t.count = 4;
@@ -243,7 +468,7 @@ Term SegmentPairTerm(const System& s, int a, int b, const Points& x, double stif
     n /= len;
   } else {
     // Touching exactly: separate along the common perpendicular (or any perpendicular).
-    const Vec3 da = x.col(sa.n1) - x.col(sa.n0), db = x.col(sb.n1) - x.col(sb.n0);
+    const Vec3 da = a1 - a0, db = b1 - b0;
     n = da.cross(db);
     if (n.norm() < 1e-12) n = da.unitOrthogonal();
     n.normalize();
@@ -255,8 +480,8 @@ Term SegmentPairTerm(const System& s, int a, int b, const Points& x, double stif
 
 bool PairExcluded(const System& s, const std::vector<ThreadModel>& models,
                   const std::vector<ThreadRest>& rest, double exclusion_factor, int a, int b) {
-  const SegmentRef& sa = s.segments[a];
-  const SegmentRef& sb = s.segments[b];
+  const ThreadSegmentRef& sa = s.segments[a];
+  const ThreadSegmentRef& sb = s.segments[b];
   if (sa.thread != sb.thread) return false;
   if (!models[sa.thread].self_collision) return true;
   const int i = std::min(sa.seg, sb.seg), j = std::max(sa.seg, sb.seg);
@@ -266,54 +491,112 @@ bool PairExcluded(const System& s, const std::vector<ThreadModel>& models,
 }
 
 SweptSegments Swept(const System& s, int a, int b, const Points& x1) {
-  const SegmentRef& sa = s.segments[a];
-  const SegmentRef& sb = s.segments[b];
+  const ThreadSegmentRef& sa = s.segments[a];
+  const ThreadSegmentRef& sb = s.segments[b];
   return SweptSegments{s.x0.col(sa.n0), s.x0.col(sa.n1), s.x0.col(sb.n0), s.x0.col(sb.n1),
                        x1.col(sa.n0),   x1.col(sa.n1),   x1.col(sb.n0),   x1.col(sb.n1)};
 }
 
-std::vector<std::array<int, 2>> CandidatePairs(const System& s,
-                                               const std::vector<ThreadModel>& models,
-                                               const std::vector<ThreadRest>& rest,
-                                               const ThreadSolverParams& p, const Points& x1,
-                                               double pad_factor) {
-  std::vector<Box3> boxes(s.segments.size());
-  for (std::size_t i = 0; i < s.segments.size(); ++i) {
-    const SegmentRef& sg = s.segments[i];
-    boxes[i] = SweptSegmentBox(s.x0.col(sg.n0), s.x0.col(sg.n1), x1.col(sg.n0), x1.col(sg.n1),
-                               0.5 * s.seg_diameter[i] * pad_factor);
+// Segment pairs whose swept boxes (x0 -> x1, grown by pad_factor * radius) overlap and that are
+// not excluded, into s->kept (sorted).
+void CandidatePairs(System* s, const std::vector<ThreadModel>& models,
+                    const std::vector<ThreadRest>& rest, const ThreadSolverParams& p,
+                    const Points& x1, double pad_factor) {
+  s->boxes.resize(s->segments.size());
+  for (std::size_t i = 0; i < s->segments.size(); ++i) {
+    const ThreadSegmentRef& sg = s->segments[i];
+    s->boxes[i] = SweptSegmentBox(s->x0.col(sg.n0), s->x0.col(sg.n1), x1.col(sg.n0), x1.col(sg.n1),
+                                  0.5 * s->seg_diameter[i] * pad_factor);
   }
-  std::vector<std::array<int, 2>> pairs = OverlappingPairs(boxes);
-  std::vector<std::array<int, 2>> kept;
-  kept.reserve(pairs.size());
-  for (const auto& pr : pairs)
-    if (!PairExcluded(s, models, rest, p.exclusion_factor, pr[0], pr[1])) kept.push_back(pr);
-  return kept;
+  OverlappingPairs(s->boxes, &s->order, &s->pairs);
+  s->kept.clear();
+  for (const auto& pr : s->pairs)
+    if (!PairExcluded(*s, models, rest, p.exclusion_factor, pr[0], pr[1])) s->kept.push_back(pr);
 }
 
-// Strain limiting (Provot 1995): Newton on a slack, nearly inextensible chain converges slowly,
-// so an unconverged iterate may be over-stretched. A few Gauss-Seidel passes (in segment order,
-// deterministic) shorten every segment longer than (1 + max_strain) L0, moving its ends in
-// inverse proportion to their masses (fixed nodes do not move).
-void LimitStrain(const System& s, double max_strain, int passes, Points* x) {
+// Mass-weighted projection of segment lengths (fast projection, Goldenthal et al. 2007): each
+// pass linearises the lengths of the active segments and solves the tridiagonal system
+// (J W J^T) dlambda = l - target along the chains (Thomas algorithm; W = inverse masses, fixed
+// nodes do not move), then moves x by -W J^T dlambda. Converges quadratically. s->tri_active
+// and s->tri_target (mm) must be set for every stretch term; with limit_only, a segment joins
+// the active set only once it is longer than its target (and stays in it).
+int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
+  const int m = static_cast<int>(s->stretch_terms.size());
+  s->tri_a.resize(m);
+  s->tri_b.resize(m);
+  s->tri_c.resize(m);
+  s->tri_r.resize(m);
+  s->tri_u.resize(m);
+  int joined = 0;
+  auto w = [&](int node) { return s->dof[node] >= 0 ? 1.0 / s->mass[node] : 0.0; };
   for (int pass = 0; pass < passes; ++pass) {
-    bool changed = false;
-    for (const Term& t : s.fixed_terms) {
-      if (t.kind != Term::Kind::kSpring || t.k_compress < 0) continue;  // stretch terms only
-      const int a = t.node[0], b = t.node[1];
-      const double wa = s.dof[a] >= 0 ? 1.0 / s.mass[a] : 0.0;
-      const double wb = s.dof[b] >= 0 ? 1.0 / s.mass[b] : 0.0;
-      if (wa + wb == 0) continue;
-      const Vec3 e = x->col(b) - x->col(a);
-      const double l = e.norm(), lmax = (1 + max_strain) * t.scalar;
-      if (l <= lmax) continue;
-      const Vec3 corr = (l - lmax) / (l * (wa + wb)) * e;
-      x->col(a) += wa * corr;
-      x->col(b) -= wb * corr;
-      changed = true;
+    bool any = false;
+    for (int j = 0; j < m; ++j) {
+      const Term& t = s->stretch_terms[j];
+      const Vec3 e = x->col(t.node[1]) - x->col(t.node[0]);
+      const double l = e.norm();
+      s->tri_u[j] = l > 0 ? Vec3(e / l) : Vec3::Zero();
+      s->tri_r[j] = l - s->tri_target[j];
+      if (w(t.node[0]) + w(t.node[1]) == 0 || l == 0) {
+        s->tri_active[j] = 0;
+        continue;
+      }
+      if (limit_only && !s->tri_active[j] && l > s->tri_target[j] * (1 + 1e-12)) {
+        s->tri_active[j] = 1;
+        ++joined;
+      }
+      if (s->tri_active[j] && std::abs(s->tri_r[j]) > 1e-12 * s->tri_target[j]) any = true;
     }
-    if (!changed) break;
+    if (!any) break;
+    for (int j = 0; j < m; ++j) {
+      const Term& t = s->stretch_terms[j];
+      const bool act = s->tri_active[j];
+      s->tri_b[j] = act ? w(t.node[0]) + w(t.node[1]) : 1.0;
+      if (!act) s->tri_r[j] = 0;
+      s->tri_c[j] = 0;
+      if (act && j + 1 < m && s->tri_active[j + 1] && s->stretch_terms[j + 1].node[0] == t.node[1])
+        s->tri_c[j] = -w(t.node[1]) * s->tri_u[j].dot(s->tri_u[j + 1]);
+      s->tri_a[j] = j > 0 ? s->tri_c[j - 1] : 0.0;
+    }
+    for (int j = 1; j < m; ++j) {  // Thomas algorithm (positive definite, no pivoting)
+      const double f = s->tri_a[j] / s->tri_b[j - 1];
+      s->tri_b[j] -= f * s->tri_c[j - 1];
+      s->tri_r[j] -= f * s->tri_r[j - 1];
+    }
+    for (int j = m - 1; j >= 0; --j) {
+      if (j + 1 < m) s->tri_r[j] -= s->tri_c[j] * s->tri_r[j + 1];
+      s->tri_r[j] /= s->tri_b[j];
+    }
+    for (int j = 0; j < m; ++j) {
+      if (s->tri_r[j] == 0) continue;
+      const Term& t = s->stretch_terms[j];
+      const Vec3 corr = s->tri_r[j] * s->tri_u[j];
+      x->col(t.node[0]) += w(t.node[0]) * corr;
+      x->col(t.node[1]) -= w(t.node[1]) * corr;
+    }
   }
+  return joined;
+}
+
+// Strain limit: a pull far beyond the suture's strength (or an unconverged iterate) may stretch
+// a segment beyond lmax = (1 + max_strain) L0. Such segments are projected to lmax while every
+// other segment keeps its current length (projecting only the violators would push the stretch
+// into their neighbours, one segment per pass). Returns the number of segments limited.
+int LimitStrain(System* s, double max_strain, int passes, Points* x) {
+  const int m = static_cast<int>(s->stretch_terms.size());
+  s->tri_active.assign(m, 1);
+  s->tri_target.resize(m);
+  int limited = 0;
+  for (int j = 0; j < m; ++j) {
+    const Term& t = s->stretch_terms[j];
+    const double l = (x->col(t.node[1]) - x->col(t.node[0])).norm();
+    const double lmax = (1 + max_strain) * t.scalar;
+    if (l > lmax) ++limited;
+    s->tri_target[j] = std::min(l, lmax);
+  }
+  if (limited == 0) return 0;
+  ProjectLengths(s, false, passes, x);
+  return limited;
 }
 
 }  // namespace
@@ -359,6 +642,25 @@ void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspac
   ws->rest.clear();
   for (const ThreadModel& t : threads) ws->rest.push_back(MakeThreadRest(t));
   ws->last = ThreadStepStats{};
+  // Room for 8 segment-segment candidates/contacts per segment and 16 off-band columns, so
+  // that steps after the first do not allocate unless they need more than that.
+  std::size_t nodes = 0;
+  for (const ThreadModel& t : threads) nodes += static_cast<std::size_t>(t.initial.nodes.cols());
+  ThreadScratch& s = ws->scratch;
+  const std::size_t pairs = 8 * nodes;
+  s.pair_terms.reserve(pairs);
+  s.pair_keys.reserve(pairs);
+  s.pairs.reserve(pairs);
+  s.kept.reserve(pairs);
+  s.fixed_terms.reserve(4 * nodes);
+  s.switch_active.reserve(2 * nodes + pairs);
+  s.switch_dir.reserve(2 * nodes + pairs);
+  s.cols_node.reserve(4 * 16);
+  s.cols_node_w.reserve(4 * 16);
+  s.cols_dir.reserve(16);
+  s.cols_v.reserve(16 * 3 * nodes);
+  s.cap_s.reserve(16 * 16);
+  s.cap_y.reserve(16);
 }
 
 void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
@@ -371,10 +673,12 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
   ws->last = ThreadStepStats{};
   if (nt == 0) return;
 
-  // ---- Global numbering.
-  System s;
+  // ---- Global numbering. Every buffer lives in ws->scratch and keeps its capacity.
+  System& s = ws->scratch;
   s.dt = dt_s;
   s.gravity = gravity_mm_s2;
+  s.num_nodes = 0;
+  s.num_free = 0;
   s.offset.resize(nt);
   for (int t = 0; t < nt; ++t) {
     s.offset[t] = s.num_nodes;
@@ -386,6 +690,7 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
   s.alive.assign(s.num_nodes, 0);
   s.mass.assign(s.num_nodes, 0.0);
   s.inertia.assign(s.num_nodes, 0.0);
+  s.min_pivot.assign(s.num_nodes, 0.0);
   for (int t = 0; t < nt; ++t) {
     const ThreadState& st = (*states)[t];
     const ThreadRest& r = ws->rest[t];
@@ -402,10 +707,19 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
       s.mass[g] = r.mass_kg[i];
       s.inertia[g] = r.mass_kg[i] * (1 + threads[t].damping_per_s * dt_s) / (dt_s * dt_s);
       if (s.alive[g] && !r.fixed[i]) s.dof[g] = s.num_free++;
+      // The matrix is inertia + positive semi-definite terms, so its pivots are >= the
+      // inertia; a pivot far below it means the negative geometric terms made it indefinite.
+      s.min_pivot[g] = s.dof[g] >= 0 ? 1e-3 * s.inertia[g] : 0.5;
     }
   }
 
   // ---- Internal terms: stretch and bending.
+  s.stretch_terms.clear();
+  s.fixed_terms.clear();
+  s.pair_terms.clear();
+  s.pair_keys.clear();
+  s.segments.clear();
+  s.seg_diameter.clear();
   for (int t = 0; t < nt; ++t) {
     const ThreadModel& m = threads[t];
     const ThreadRest& r = ws->rest[t];
@@ -423,8 +737,8 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
       term.k = ea / r.rest_length_mm[i];
       term.k_compress = p.compression_stiffness_fraction * term.k;
       term.scalar = r.rest_length_mm[i];
-      s.fixed_terms.push_back(term);
-      s.segments.push_back(SegmentRef{t, i, g0, g1});
+      s.stretch_terms.push_back(term);
+      s.segments.push_back(ThreadSegmentRef{t, i, g0, g1});
       s.seg_diameter.push_back(m.diameter_mm);
     }
     if (ei > 0) {
@@ -445,8 +759,8 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
   }
 
   // ---- External contacts and springs (targets kThread only).
-  std::vector<int> contact_term(contacts ? contacts->size() : 0, -1);
-  std::vector<int> spring_term(springs ? springs->size() : 0, -1);
+  s.contact_term.assign(contacts ? contacts->size() : 0, -1);
+  s.spring_term.assign(springs ? springs->size() : 0, -1);
   if (contacts) {
     for (std::size_t c = 0; c < contacts->size(); ++c) {
       const PointContact& pc = (*contacts)[c];
@@ -461,7 +775,7 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
       term.k = pc.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
       term.vec = pc.normal;
       term.scalar = pc.offset_mm;
-      contact_term[c] = static_cast<int>(s.fixed_terms.size());
+      s.contact_term[c] = static_cast<int>(s.fixed_terms.size());
       s.fixed_terms.push_back(term);
     }
   }
@@ -479,7 +793,7 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
       term.k = ps.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
       term.vec = ps.anchor_mm;
       term.scalar = ps.rest_length_mm;
-      spring_term[c] = static_cast<int>(s.fixed_terms.size());
+      s.spring_term[c] = static_cast<int>(s.fixed_terms.size());
       s.fixed_terms.push_back(term);
     }
   }
@@ -506,39 +820,50 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
 
   // ---- Proximity contacts at the start of the step.
   const double kc = p.contact_stiffness_n_per_mm * units::kNewtonPerMmToInternal;
-  auto add_pair = [&](int a, int b, const SegmentClosest& cp, const Points& xref) {
+  auto add_pair = [&](int a, int b, const SegmentClosest& cp, const Vec3& a0, const Vec3& a1,
+                      const Vec3& b0, const Vec3& b1) {
     const std::array<int, 2> key{a, b};
     auto it = std::lower_bound(s.pair_keys.begin(), s.pair_keys.end(), key);
     if (it != s.pair_keys.end() && *it == key) return false;
     const std::size_t pos = static_cast<std::size_t>(it - s.pair_keys.begin());
     s.pair_keys.insert(it, key);
     s.pair_terms.insert(s.pair_terms.begin() + static_cast<std::ptrdiff_t>(pos),
-                        SegmentPairTerm(s, a, b, xref, kc, cp));
+                        SegmentPairTerm(s, a, b, kc, cp, a0, a1, b0, b1));
     return true;
   };
   if (!s.segments.empty()) {
     const double pad = 1.0 + p.contact_margin_factor;
-    for (const auto& pr : CandidatePairs(s, threads, ws->rest, p, s.x0, pad)) {
-      const SegmentRef& sa = s.segments[pr[0]];
-      const SegmentRef& sb = s.segments[pr[1]];
-      const SegmentClosest cp =
-          ClosestPointsSegments(s.x0.col(sa.n0), s.x0.col(sa.n1), s.x0.col(sb.n0), s.x0.col(sb.n1));
+    CandidatePairs(&s, threads, ws->rest, p, s.x0, pad);
+    for (const auto& pr : s.kept) {
+      const ThreadSegmentRef& sa = s.segments[pr[0]];
+      const ThreadSegmentRef& sb = s.segments[pr[1]];
+      const Vec3 a0 = s.x0.col(sa.n0), a1 = s.x0.col(sa.n1);
+      const Vec3 b0 = s.x0.col(sb.n0), b1 = s.x0.col(sb.n1);
+      const SegmentClosest cp = ClosestPointsSegments(a0, a1, b0, b1);
       const double dist = 0.5 * (s.seg_diameter[pr[0]] + s.seg_diameter[pr[1]]);
-      if (cp.distance < pad * dist) add_pair(pr[0], pr[1], cp, s.x0);
+      if (cp.distance < pad * dist) add_pair(pr[0], pr[1], cp, a0, a1, b0, b1);
     }
   }
 
-  // ---- Solve, then continuous detection and re-solve.
-  Points x = s.x0;
-  for (int i = 0; i < s.num_nodes; ++i)
-    if (s.dof[i] >= 0) x.col(i) += dt_s * s.v0.col(i);
+  // ---- Solve, then continuous detection and re-solve. Newton starts from x0, which is on the
+  // length constraints; the explicit guess x0 + dt v0 of a moving slack chain is not (its
+  // stretch energy can be 1e5 times the step's), and on the benchmark scene it keeps Newton
+  // at its iteration cap. The step energy is not convex for a compressed chain, so the start
+  // can decide which minimum a step finds (see the report on the draped-arch test).
+  s.x = s.x0;
+  Points& x = s.x;
   for (int round = 0;; ++round) {
-    ws->last.newton_iterations += NewtonSolve(s, p, &x);
-    LimitStrain(s, p.max_strain, p.strain_limit_passes, &x);
+    bool converged = false;
+    const int iters = NewtonSolve(&s, p, &x, &converged);
+    ws->last.newton_iterations += iters;
+    ws->last.max_newton_per_solve = std::max(ws->last.max_newton_per_solve, iters);
+    if (!converged) ++ws->last.unconverged_solves;
+    ws->last.strain_limited_segments += LimitStrain(&s, p.max_strain, p.strain_limit_passes, &x);
     ++ws->last.solves;
     if (s.segments.empty() || round >= p.max_ccd_rounds) break;
     bool added = false;
-    for (const auto& pr : CandidatePairs(s, threads, ws->rest, p, x, 1.0)) {
+    CandidatePairs(&s, threads, ws->rest, p, x, 1.0);
+    for (const auto& pr : s.kept) {
       if (std::binary_search(s.pair_keys.begin(), s.pair_keys.end(), pr)) continue;
       const double dist = 0.5 * (s.seg_diameter[pr[0]] + s.seg_diameter[pr[1]]);
       const SweptSegments sw = Swept(s, pr[0], pr[1], x);
@@ -559,12 +884,12 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
         if (c.distance < dist) break;
         t_ref = tk;
       }
-      const Points xref = s.x0 + t_ref * (x - s.x0);
-      const SegmentRef& sa = s.segments[pr[0]];
-      const SegmentRef& sb = s.segments[pr[1]];
-      const SegmentClosest cp =
-          ClosestPointsSegments(xref.col(sa.n0), xref.col(sa.n1), xref.col(sb.n0), xref.col(sb.n1));
-      added |= add_pair(pr[0], pr[1], cp, xref);
+      const Vec3 a0 = sw.a0_start + t_ref * (sw.a0_end - sw.a0_start);
+      const Vec3 a1 = sw.a1_start + t_ref * (sw.a1_end - sw.a1_start);
+      const Vec3 b0 = sw.b0_start + t_ref * (sw.b0_end - sw.b0_start);
+      const Vec3 b1 = sw.b1_start + t_ref * (sw.b1_end - sw.b1_start);
+      const SegmentClosest cp = ClosestPointsSegments(a0, a1, b0, b1);
+      added |= add_pair(pr[0], pr[1], cp, a0, a1, b0, b1);
     }
     if (!added) break;
   }
@@ -573,18 +898,18 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
   // ---- Fail-safe: revert every thread involved in a crossing to its start-of-step position
   // (whole threads, so no segment is torn). x0 is crossing-free, so this terminates.
   if (!s.segments.empty()) {
-    std::vector<std::uint8_t> frozen(nt, 0);
-    const std::vector<std::array<int, 2>> cand = CandidatePairs(s, threads, ws->rest, p, x, 1.0);
+    s.frozen.assign(nt, 0);
+    CandidatePairs(&s, threads, ws->rest, p, x, 1.0);
     for (int pass = 0; pass <= nt; ++pass) {
       bool any = false;
-      for (const auto& pr : cand) {
+      for (const auto& pr : s.kept) {
         const SweptResult res =
             SweptSegmentTest(Swept(s, pr[0], pr[1], x), p.crossing_tolerance_mm, 1);
         if (!res.crosses) continue;
         for (int seg : pr) {
           const int t = s.segments[seg].thread;
-          if (frozen[t]) continue;
-          frozen[t] = 1;
+          if (s.frozen[t]) continue;
+          s.frozen[t] = 1;
           any = true;
           const int end = t + 1 < nt ? s.offset[t + 1] : s.num_nodes;
           for (int i = s.offset[t]; i < end; ++i) {
@@ -623,8 +948,8 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
     for (std::size_t c = 0; c < contacts->size(); ++c) {
       if ((*contacts)[c].target != PointContact::Target::kThread) continue;
       (*contacts)[c].force_n = 0;
-      if (contact_term[c] < 0) continue;
-      const Term& t = s.fixed_terms[contact_term[c]];
+      if (s.contact_term[c] < 0) continue;
+      const Term& t = s.fixed_terms[s.contact_term[c]];
       TermEval(t, TermY(t, x), &g, nullptr);
       (*contacts)[c].force_n = g.norm() * units::kInternalForceToNewton;
     }
@@ -633,8 +958,8 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
     for (std::size_t c = 0; c < springs->size(); ++c) {
       if ((*springs)[c].target != PointContact::Target::kThread) continue;
       (*springs)[c].force_n.setZero();
-      if (spring_term[c] < 0) continue;
-      const Term& t = s.fixed_terms[spring_term[c]];
+      if (s.spring_term[c] < 0) continue;
+      const Term& t = s.fixed_terms[s.spring_term[c]];
       TermEval(t, TermY(t, x), &g, nullptr);
       (*springs)[c].force_n = -g * units::kInternalForceToNewton;
     }

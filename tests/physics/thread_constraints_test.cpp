@@ -253,6 +253,9 @@ TEST(ThreadStability, RandomToolPullsAtTwentyMs) {
   // Pulls of up to ~80 N on EA = 5 kN (1.6 %) with a 1 % strain limit: never near the ~5 %
   // at which FiberWire fails; a blow-up would show tens of percent.
   EXPECT_LT(run.max_strain, 0.03);
+  // The strain limit is a projection solved to 1e-12 of the length: no transient stretch
+  // beyond 1 % (the elastic strain of the largest pulls is ~1.6 %).
+  EXPECT_LE(run.max_strain, 0.01 + 1e-9);
   std::printf("1000 random-pull steps: max energy %.3e uJ (bound %.3e), max strain %.3e\n",
               run.max_energy, bound, run.max_strain);
 }

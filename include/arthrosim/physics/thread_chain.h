@@ -12,14 +12,22 @@
 // Time stepping is backward Euler written as the minimisation of the incremental potential
 //   E(x) = sum_i m_i [ (1 + alpha dt) |x_i - x0_i|^2 / (2 dt^2) - (x_i - x0_i).v0_i / dt
 //                      - g.(x_i - x0_i) ] + U(x),   v1 = (x1 - x0) / dt,
-// solved by Newton (sparse SimplicialLDLT) with an Armijo line search, so every iterate lowers
-// E and a step cut short by the iteration limit is still stable. The first iterate is the
-// linearised backward Euler step. The spring Hessian includes the geometric term
-// k (1 - L0 / l)(I - u u^T) in tension and drops it in compression (positive definite matrix).
-// A braid buckles instead of resisting compression: axial stiffness in compression is a small
-// fraction of EA. Newton converges slowly on a slack, nearly inextensible chain, so after the
-// solve a strain limit (Gauss-Seidel, Provot 1995) shortens any segment stretched beyond
-// max_strain (1 %, far above the elastic strain of real pulls: 1 N -> 0.02 %).
+// solved by Newton from x0 with an Armijo line search, so every iterate lowers E and a step cut
+// short by the iteration limit is still stable. Each Newton matrix is block-pentadiagonal per
+// chain (inertia, stretch, bending, point contacts and springs) and is factored by a banded
+// block Cholesky in O(n); segment-segment contacts are rank-1 columns added by a Woodbury
+// capacitance matrix. Three things make Newton converge on a moving, nearly inextensible chain
+// (stiffness / nodal inertia ~ 1e10): (1) the transverse stiffness of a segment uses its
+// stretch multiplier lambda / l (I - u u^T) (the Hessian of the Lagrangian, as in SQP), not
+// k (1 - L / l), which explodes once a step rotates a stiff segment; compressed segments keep
+// their negative term unless the factorisation finds the matrix indefinite; (2) the line
+// search projects the trial lengths onto their linearised values (second-order correction,
+// without which the energy rejects every rotating step); (3) contact planes and speed barriers
+// get the activity predicted at the step (primal-dual active set, a few re-solves), so a
+// thread landing on tissue does not discover its contacts one per iteration. A braid buckles
+// instead of resisting compression: axial stiffness in compression is a small fraction of EA.
+// After the solve, segments stretched beyond max_strain (1 %; FiberWire fails at ~5 %, a 1 N
+// pull stretches 0.02 %) are projected back (tridiagonal fast projection per chain).
 //
 // Speed cap (paper: anti-jitter limit): a one-sided penalty inside the solve keeps each node
 // within max_speed dt of its start (so the chain keeps its length while slowed), and the stored
@@ -41,6 +49,7 @@
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 #include "arthrosim/physics/contact.h"
+#include "arthrosim/physics/thread_scratch.h"
 
 namespace arthrosim::physics {
 
@@ -48,10 +57,11 @@ namespace arthrosim::physics {
 struct ThreadSolverParams {
   double contact_stiffness_n_per_mm = 100.0;  ///< segment-segment penalty, N/mm
   double contact_margin_factor =
-      1.0;  ///< pairs within (1 + f) * contact distance at x0 get a contact
-  int max_newton_iterations = 8;
-  double max_strain = 0.01;  ///< strain limit applied after the solve (FiberWire fails at ~5 %)
-  int strain_limit_passes = 100;      ///< Gauss-Seidel passes of the strain limit
+      1.0;                        ///< pairs within (1 + f) * contact distance at x0 get a contact
+  int max_newton_iterations = 8;  ///< per solve
+  int max_active_set_passes = 4;  ///< contact active-set re-solves per Newton iteration
+  double max_strain = 0.01;      ///< strain limit applied after the solve (FiberWire fails at ~5 %)
+  int strain_limit_passes = 20;  ///< passes of the strain-limit projection (tridiagonal)
   double newton_tolerance_mm = 1e-7;  ///< stop when the largest Newton update is below this
   int max_ccd_rounds = 3;             ///< re-solves after continuous detection
   int ccd_samples = 8;                ///< distance samples per step in the swept test
@@ -74,11 +84,14 @@ struct ThreadRest {
 
 /// What the last StepThreads did (diagnostics, benchmarks).
 struct ThreadStepStats {
-  int newton_iterations = 0;   ///< over all solves of the step
-  int solves = 0;              ///< 1 + re-solves after continuous detection
-  int contact_pairs = 0;       ///< segment-segment contacts in the final solve
-  int frozen_nodes = 0;        ///< nodes reverted by the crossing fail-safe
-  int speed_capped_nodes = 0;  ///< nodes whose stored velocity was clamped to the cap
+  int newton_iterations = 0;        ///< over all solves of the step
+  int solves = 0;                   ///< 1 + re-solves after continuous detection
+  int contact_pairs = 0;            ///< segment-segment contacts in the final solve
+  int frozen_nodes = 0;             ///< nodes reverted by the crossing fail-safe
+  int speed_capped_nodes = 0;       ///< nodes whose stored velocity was clamped to the cap
+  int max_newton_per_solve = 0;     ///< largest Newton iteration count of one solve
+  int unconverged_solves = 0;       ///< solves stopped by max_newton_iterations
+  int strain_limited_segments = 0;  ///< segments shortened to (1 + max_strain) L0
 };
 
 /// Derived data and scratch for all threads; build once with InitThreadWorkspace.
@@ -86,6 +99,7 @@ struct ThreadWorkspace {
   ThreadSolverParams params;
   std::vector<ThreadRest> rest;  ///< parallel to Model::threads
   ThreadStepStats last;
+  ThreadScratch scratch;  ///< buffers reused by every step (no steady-state allocation)
 };
 
 /// Rest data of one thread. Throws std::invalid_argument if the mesh is not a chain 0-1-...-n
