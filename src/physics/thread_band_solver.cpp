@@ -54,22 +54,26 @@ double Cholesky3(const Mat3& a, Mat3* l) {
   (*l)(1, 1) = l11;
   (*l)(2, 1) = l21;
   (*l)(2, 2) = l22;
+  // The unused upper triangle keeps the reciprocals of the pivots (divisions are slow).
+  (*l)(0, 1) = 1 / l00;
+  (*l)(0, 2) = 1 / l11;
+  (*l)(1, 2) = 1 / l22;
   return std::min({l00, l11, l22});
 }
 
-// Solves L y = b (L lower triangular 3x3).
+// Solves L y = b (L lower triangular 3x3 from Cholesky3, reciprocal pivots above).
 Vec3 Forward3(const Mat3& l, const Vec3& b) {
-  const double y0 = b(0) / l(0, 0);
-  const double y1 = (b(1) - l(1, 0) * y0) / l(1, 1);
-  const double y2 = (b(2) - l(2, 0) * y0 - l(2, 1) * y1) / l(2, 2);
+  const double y0 = b(0) * l(0, 1);
+  const double y1 = (b(1) - l(1, 0) * y0) * l(0, 2);
+  const double y2 = (b(2) - l(2, 0) * y0 - l(2, 1) * y1) * l(1, 2);
   return Vec3(y0, y1, y2);
 }
 
 // Solves L^T x = y.
 Vec3 Backward3(const Mat3& l, const Vec3& y) {
-  const double x2 = y(2) / l(2, 2);
-  const double x1 = (y(1) - l(2, 1) * x2) / l(1, 1);
-  const double x0 = (y(0) - l(1, 0) * x1 - l(2, 0) * x2) / l(0, 0);
+  const double x2 = y(2) * l(1, 2);
+  const double x1 = (y(1) - l(2, 1) * x2) * l(0, 2);
+  const double x0 = (y(0) - l(1, 0) * x1 - l(2, 0) * x2) * l(0, 1);
   return Vec3(x0, x1, x2);
 }
 

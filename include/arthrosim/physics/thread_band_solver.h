@@ -12,7 +12,7 @@ namespace arthrosim::physics {
 /// Lower half of a symmetric block matrix with block bandwidth 2, and its LDL^T factors.
 struct BandedBlockMatrix {
   int n = 0;               ///< number of 3x3 block rows (nodes)
-  std::vector<Mat3> diag;  ///< A(i, i); after Factor: L(i, i) (lower triangular)
+  std::vector<Mat3> diag;  ///< A(i, i); after Factor: L(i, i) below, 1 / pivots above
   std::vector<Mat3> sub1;  ///< A(i + 1, i); after Factor: L(i + 1, i)
   std::vector<Mat3> sub2;  ///< A(i + 2, i); after Factor: L(i + 2, i)
 };

@@ -60,8 +60,8 @@ struct ThreadSolverParams {
       1.0;                        ///< pairs within (1 + f) * contact distance at x0 get a contact
   int max_newton_iterations = 8;  ///< per solve
   int max_active_set_passes = 4;  ///< contact active-set re-solves per Newton iteration
-  double max_strain = 0.01;      ///< strain limit applied after the solve (FiberWire fails at ~5 %)
-  int strain_limit_passes = 20;  ///< passes of the strain-limit projection (tridiagonal)
+  double max_strain = 0.01;  ///< strain limit applied after the solve (FiberWire fails at ~5 %)
+  int strain_limit_passes = 100;      ///< passes of the strain-limit projection (tridiagonal)
   double newton_tolerance_mm = 1e-7;  ///< stop when the largest Newton update is below this
   int max_ccd_rounds = 3;             ///< re-solves after continuous detection
   int ccd_samples = 8;                ///< distance samples per step in the swept test
