@@ -116,6 +116,10 @@ void Object::Check(std::int64_t status, const std::string& what) const {
   if (status < 0) Fail(file_, path_, what);
 }
 
+void Object::Check(std::int64_t status, const char* what) const {
+  if (status < 0) Fail(file_, path_, what);
+}
+
 namespace {
 // Opens attribute `name` for writing, replacing an existing one of another type.
 Handle CreateAttr(const Object& o, const std::string& name, hid_t type) {
@@ -221,21 +225,21 @@ std::vector<hsize_t> Dataset::dims() const {
   return d;
 }
 
-void Dataset::SetExtent(const std::vector<hsize_t>& dims) {
-  Check(H5Dset_extent(id(), dims.data()), "cannot change extent");
+void Dataset::SetExtent(int rank, const hsize_t* dims) {
+  Handle space(H5Dget_space(id()), H5Sclose);
+  if (!space.valid() || H5Sget_simple_extent_ndims(space.get()) != rank) {
+    Fail(file_, path_, "extent rank does not match the dataset");
+  }
+  Check(H5Dset_extent(id(), dims), "cannot change extent");
 }
 
 namespace {
-Handle SelectSlab(const Dataset& d, const std::vector<hsize_t>& start,
-                  const std::vector<hsize_t>& count) {
+Handle SelectSlab(const Dataset& d, int rank, const hsize_t* start, const hsize_t* count) {
   Handle space(H5Dget_space(d.id()), H5Sclose);
-  if (!space.valid() ||
-      static_cast<std::size_t>(H5Sget_simple_extent_ndims(space.get())) != start.size() ||
-      start.size() != count.size()) {
+  if (!space.valid() || H5Sget_simple_extent_ndims(space.get()) != rank) {
     throw Error(d.file(), d.path(), "hyperslab rank does not match the dataset");
   }
-  if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
-                          nullptr) < 0) {
+  if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0) {
     throw Error(d.file(), d.path(), "bad hyperslab");
   }
   return space;
@@ -244,11 +248,17 @@ Handle SelectSlab(const Dataset& d, const std::vector<hsize_t>& start,
 
 void Dataset::Write(const std::vector<hsize_t>& start, const std::vector<hsize_t>& count,
                     hid_t mem_type, const void* data) {
-  for (hsize_t c : count) {
-    if (c == 0) return;
+  if (start.size() != count.size()) Fail(file_, path_, "hyperslab rank does not match the dataset");
+  Write(static_cast<int>(count.size()), start.data(), count.data(), mem_type, data);
+}
+
+void Dataset::Write(int rank, const hsize_t* start, const hsize_t* count, hid_t mem_type,
+                    const void* data) {
+  for (int d = 0; d < rank; ++d) {
+    if (count[d] == 0) return;
   }
-  Handle fspace = SelectSlab(*this, start, count);
-  Handle mspace(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose);
+  Handle fspace = SelectSlab(*this, rank, start, count);
+  Handle mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
   Check(H5Dwrite(id(), mem_type, mspace.get(), fspace.get(), H5P_DEFAULT, data), "cannot write");
 }
 
@@ -257,7 +267,8 @@ void Dataset::Read(const std::vector<hsize_t>& start, const std::vector<hsize_t>
   for (hsize_t c : count) {
     if (c == 0) return;
   }
-  Handle fspace = SelectSlab(*this, start, count);
+  if (start.size() != count.size()) Fail(file_, path_, "hyperslab rank does not match the dataset");
+  Handle fspace = SelectSlab(*this, static_cast<int>(count.size()), start.data(), count.data());
   Handle mspace(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose);
   Check(H5Dread(id(), mem_type, mspace.get(), fspace.get(), H5P_DEFAULT, data), "cannot read");
 }

@@ -2,55 +2,93 @@
 // Private building blocks of RunWriter: a per-frame series ([T, ...] growing along time and
 // optionally along the node/element dimension) and a block series (concatenated rows written
 // only when they change, with per-frame offset/count datasets).
+//
+// Both buffer frames in memory and write them in blocks (one extent change and one hyperslab
+// write per dataset per block): HDF5's cost is per call, not per byte, and ~60 datasets written
+// every frame cost more than the bytes. RunWriter decides when a block is written (WriteOut).
+#include <array>
 #include <cstdint>
+#include <initializer_list>
+#include <string>
 #include <vector>
 
 #include "arthrosim/io/hdf5.h"
 
 namespace arthrosim::io::detail {
 
-/// A dataset with one row per frame, shape [T, row...]. Dimensions listed in `also_grow` (1-based
-/// in the full shape) may grow; rows that did not exist yet in a frame hold the fill value.
+/// A dataset with one row per frame, shape [T, row...] (rank <= kMaxRank). Dimensions listed in
+/// `also_grow` (1-based in the full shape) may grow; rows that did not exist yet in a frame hold
+/// the fill value.
 class FrameSeries {
  public:
-  /// Creates `name` in `g` with initial row shape `row`.
-  void Create(h5::Group& g, const std::string& name, hid_t file_type, std::size_t element_bytes,
+  static constexpr int kMaxRank = 4;
+
+  /// Creates `name` in `g` with initial row shape `row`; frames are given in `mem_type`.
+  void Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type,
               std::vector<hsize_t> row, std::vector<int> also_grow, const void* fill, int deflate);
-  /// Writes frame `t` (== current frame count): `row_count` elements per row dimension
-  /// (<= current extent is padded by the fill value; more grows the dataset).
-  void Write(hsize_t t, const std::vector<hsize_t>& row_count, hid_t mem_type, const void* data);
+  /// Buffers the next frame: `row_count` elements per row dimension (one entry per row
+  /// dimension; fewer than the extent are padded by the fill value, more grow the dataset).
+  /// A row shape other than the buffered frames' writes those out first (a block has one shape).
+  void Write(std::initializer_list<hsize_t> row_count, const void* data);
   template <class T>
-  void Push(hsize_t t, const T& value) {
-    Write(t, {}, h5::NativeType<T>(), &value);
+  void Push(const T& value) {
+    PushBytes(&value, sizeof(T));
   }
+  /// Writes the buffered frames to the file (one extent change, one write); no-op when empty.
+  void WriteOut();
+
+  /// Frames written to the file plus frames buffered.
+  hsize_t frames() const { return written_ + buffered_; }
+  std::size_t buffered_bytes() const { return buf_.size(); }
 
  private:
+  void PushBytes(const void* value, std::size_t bytes);
+
   h5::Dataset ds_;
-  std::vector<hsize_t> dims_;
+  hid_t mem_type_ = -1;
+  std::size_t element_bytes_ = 0;  // of mem_type_
+  int rank_ = 0;
+  std::array<hsize_t, kMaxRank> dims_{};   // current extent in the file
+  std::array<hsize_t, kMaxRank> shape_{};  // [0, row shape of the buffered frames]
+  hsize_t written_ = 0, buffered_ = 0;
+  std::vector<unsigned char> buf_;  // buffered frames, contiguous rows of shape_
 };
 
 /// Concatenated rows + `<name>_offset` [T] int64 + `<name>_count` [T] int64. A new block is
 /// appended only when its bytes differ from the previous block.
 class BlockSeries {
  public:
-  /// `columns` == 0 makes a 1-D dataset of `file_type` rows (compound records).
-  void Create(h5::Group& g, const std::string& name, hid_t file_type, int columns,
+  /// `columns` == 0 makes a 1-D dataset of `file_type` rows (compound records); rows are given
+  /// in `mem_type`, `row_bytes` each.
+  void Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type, int columns,
               std::size_t row_bytes, int deflate);
-  /// Frame `t`'s block: `rows` rows of `row_bytes` each in memory type `mem_type`.
-  void Write(hsize_t t, hid_t mem_type, const void* data, std::int64_t rows);
+  /// Buffers the next frame's block: `rows` rows at `data`.
+  void Write(const void* data, std::int64_t rows);
+  /// Writes the buffered rows, then the buffered offsets and counts (rows before references).
+  void WriteOut();
 
   std::int64_t total_rows() const { return total_; }
   const std::vector<std::int64_t>& offsets() const { return offsets_; }
   const std::vector<std::int64_t>& counts() const { return counts_; }
   const std::string& path() const { return data_.path(); }
+  std::size_t buffered_bytes() const {
+    return pending_.size() + offset_.buffered_bytes() + count_.buffered_bytes();
+  }
 
  private:
   h5::Dataset data_;
+  hid_t mem_type_ = -1;
+  int columns_ = 0;
   FrameSeries offset_, count_;
   std::size_t row_bytes_ = 0;
-  std::int64_t total_ = 0;
-  bool has_last_ = false;
+  std::int64_t total_ = 0;         // rows, written and buffered
+  std::int64_t written_rows_ = 0;  // rows in the file
+  // The previous frame's block: at pending_[last_pos_, +last_bytes_) while it is buffered, else a
+  // copy in last_ (made once per written block, not per frame).
+  bool has_last_ = false, last_in_pending_ = false;
+  std::size_t last_pos_ = 0, last_bytes_ = 0;
   std::vector<unsigned char> last_;
+  std::vector<unsigned char> pending_;          // new rows not yet written
   std::vector<std::int64_t> offsets_, counts_;  // mirrors of the index datasets (for XDMF)
 };
 

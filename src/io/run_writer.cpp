@@ -108,22 +108,33 @@ struct RunWriter::Impl {
   BlockSeries constraints, contacts;
 
   std::int64_t frames = 0, flushed = 0;
+  std::int64_t written_frames = 0;  // frames whose every dataset is in the file (/time last)
   std::int64_t last_step = std::numeric_limits<std::int64_t>::min();
   std::int64_t last_events_step = std::numeric_limits<std::int64_t>::min();
-  std::int64_t events_total = 0;
+  std::int64_t events_total = 0, events_written = 0;
   double last_flush_time = 0;
-  std::vector<layout::EventRecord> pending_events;
-  std::vector<double> times;  // mirror of /time for the .xmf
+  std::vector<layout::EventRecord> pending_events;  // recorded since the last frame
+  std::vector<layout::EventRecord> frame_events;    // of buffered frames, not yet in the file
+  std::vector<double> times;                        // mirror of /time for the .xmf
 
   // Scratch buffers reused every frame.
   std::vector<std::int32_t> ints;
   std::vector<float> floats;
   std::vector<layout::ConstraintRecord> records;
   std::vector<layout::ToolContactRecord> contact_records;
+  mutable std::vector<int> seen;  // Validate: slots holding each instrument
 
   void CreateLayout(const Model& model, const State& initial);
   void Validate(const State& s) const;
+  /// Buffers `s` as the next frame; writes the buffered block when it is full.
   void WriteFrame(const State& s);
+  /// Writes every buffered frame to the file: all datasets, then /time (a frame counts once
+  /// /time has it, so a reader never sees part of a frame).
+  void WriteBlock();
+  /// Calls f on every per-frame and block series except /time, in write order.
+  template <class F>
+  void ForEachSeries(F f);
+  std::size_t BufferedBytes();
   void WriteXdmf();
 };
 
@@ -151,10 +162,11 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
   meta.SetAttr("hdf5_version", h5::LibraryVersion());
   meta.SetAttr("created_utc", UtcNow());
 
-  time.Create(root, "time", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
-  step.Create(root, "step", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
-  rng_state.Create(root, "rng_state", H5T_STD_U64LE, 8, {}, {}, nullptr, z);
-  next_constraint_id.Create(root, "next_constraint_id", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
+  time.Create(root, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
+  step.Create(root, "step", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+  rng_state.Create(root, "rng_state", H5T_STD_U64LE, H5T_NATIVE_UINT64, {}, {}, nullptr, z);
+  next_constraint_id.Create(root, "next_constraint_id", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {},
+                            nullptr, z);
 
   event_mem = layout::EventType(false);
   event_file = layout::EventType(true);
@@ -163,7 +175,7 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     spec.deflate = z;
     events = root.CreateDataset("events", event_file.get(), spec);
   }
-  events_end.Create(root, "events_end", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
+  events_end.Create(root, "events_end", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
 
   h5::Group gb = root.CreateGroup(layout::kBodies);
   bodies.resize(model->soft_bodies.size());
@@ -175,15 +187,16 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     g.SetAttr("initial_nodes", static_cast<std::int64_t>(n));
     g.SetAttr("initial_elements", static_cast<std::int64_t>(e));
     BodyOut& b = bodies[i];
-    b.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, zf);
-    b.node_count.Create(g, "node_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
-    b.element_count.Create(g, "element_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
-    b.element_alive.Create(g, "element_alive", H5T_STD_U8LE, 1, {e}, {1}, &kZeroU8, z);
+    b.positions.Create(g, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {n, 3}, {1}, &kNaN, zf);
+    b.node_count.Create(g, "node_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    b.element_count.Create(g, "element_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    b.element_alive.Create(g, "element_alive", H5T_STD_U8LE, H5T_NATIVE_UINT8, {e}, {1}, &kZeroU8,
+                           z);
     h5::DatasetSpec spec = h5::GrowingSpec({0, 4}, 4);
     spec.deflate = z;
     b.elements = g.CreateDataset("elements", H5T_STD_I32LE, spec);
-    b.alive_elements.Create(g, "alive_elements", H5T_STD_I32LE, 4, 16, z);
-    b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, zf);
+    b.alive_elements.Create(g, "alive_elements", H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z);
+    b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
   }
 
   h5::Group gt = root.CreateGroup(layout::kThreads);
@@ -194,11 +207,11 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("diameter_mm", model->threads[i].diameter_mm);
     ThreadOut& t = threads[i];
-    t.positions.Create(g, "positions", H5T_IEEE_F64LE, 8, {n, 3}, {1}, &kNaN, zf);
-    t.node_count.Create(g, "node_count", H5T_STD_I64LE, 8, {}, {}, nullptr, z);
-    t.node_alive.Create(g, "node_alive", H5T_STD_U8LE, 1, {n}, {1}, &kZeroU8, z);
-    t.alive_segments.Create(g, "alive_segments", H5T_STD_I32LE, 2, 8, z);
-    t.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, 3, 12, zf);
+    t.positions.Create(g, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {n, 3}, {1}, &kNaN, zf);
+    t.node_count.Create(g, "node_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    t.node_alive.Create(g, "node_alive", H5T_STD_U8LE, H5T_NATIVE_UINT8, {n}, {1}, &kZeroU8, z);
+    t.alive_segments.Create(g, "alive_segments", H5T_STD_I32LE, H5T_NATIVE_INT32, 2, 8, z);
+    t.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
   }
 
   h5::Group gbo = root.CreateGroup(layout::kBones);
@@ -207,9 +220,10 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     h5::Group g = gbo.CreateGroup(model->bones[i].name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("hardness", model->bones[i].hardness);
-    bones[i].vertices.Create(g, "vertices", H5T_IEEE_F64LE, 3, 24, zf);
-    bones[i].triangles.Create(g, "triangles", H5T_STD_I32LE, 3, 12, z);
-    bones[i].removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
+    bones[i].vertices.Create(g, "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf);
+    bones[i].triangles.Create(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z);
+    bones[i].removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {},
+                                   nullptr, z);
   }
 
   h5::Group gto = root.CreateGroup(layout::kTools);
@@ -221,36 +235,77 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     g.SetAttr("kind", InstrumentKindName(im.kind));
     g.SetAttr("portal", im.portal);
     ToolOut& t = tools[i];
-    t.pose.Create(g, "pose", H5T_IEEE_F64LE, 8, {7}, {}, &kNaN, z);
-    t.jaw.Create(g, "jaw", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
-    t.buttons.Create(g, "buttons", H5T_STD_U8LE, 1, {}, {}, nullptr, z);
-    t.force.Create(g, "force", H5T_IEEE_F64LE, 8, {3}, {}, nullptr, z);
-    t.active.Create(g, "active", H5T_STD_U8LE, 1, {}, {}, nullptr, z);
-    t.slot.Create(g, "slot", H5T_STD_I8LE, 1, {}, {}, &kNoSlot, z);
+    t.pose.Create(g, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {7}, {}, &kNaN, z);
+    t.jaw.Create(g, "jaw", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
+    t.buttons.Create(g, "buttons", H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
+    t.force.Create(g, "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {3}, {}, nullptr, z);
+    t.active.Create(g, "active", H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
+    t.slot.Create(g, "slot", H5T_STD_I8LE, H5T_NATIVE_INT8, {}, {}, &kNoSlot, z);
   }
 
   h5::Group gs = root.CreateGroup(layout::kToolSlots);
   constexpr hsize_t kS = kToolSlots;
-  slot_instrument.Create(gs, "instrument", H5T_STD_I32LE, 4, {kS}, {}, &kNoInstrument, z);
-  slot_pose.Create(gs, "pose", H5T_IEEE_F64LE, 8, {kS, 7}, {}, nullptr, z);
-  slot_jaw.Create(gs, "jaw", H5T_IEEE_F64LE, 8, {kS}, {}, nullptr, z);
-  slot_buttons.Create(gs, "buttons", H5T_STD_U8LE, 1, {kS}, {}, nullptr, z);
-  slot_force.Create(gs, "force", H5T_IEEE_F64LE, 8, {kS, 3}, {}, nullptr, z);
+  slot_instrument.Create(gs, "instrument", H5T_STD_I32LE, H5T_NATIVE_INT32, {kS}, {},
+                         &kNoInstrument, z);
+  slot_pose.Create(gs, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS, 7}, {}, nullptr, z);
+  slot_jaw.Create(gs, "jaw", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS}, {}, nullptr, z);
+  slot_buttons.Create(gs, "buttons", H5T_STD_U8LE, H5T_NATIVE_UINT8, {kS}, {}, nullptr, z);
+  slot_force.Create(gs, "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS, 3}, {}, nullptr, z);
 
   h5::Group gc = root.CreateGroup(layout::kCamera);
-  camera_pose.Create(gc, "pose", H5T_IEEE_F64LE, 8, {7}, {}, nullptr, z);
-  camera_lens_roll.Create(gc, "lens_roll", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
-  camera_head_roll.Create(gc, "head_roll", H5T_IEEE_F64LE, 8, {}, {}, nullptr, z);
+  camera_pose.Create(gc, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {7}, {}, nullptr, z);
+  camera_lens_roll.Create(gc, "lens_roll", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
+  camera_head_roll.Create(gc, "head_roll", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
 
   h5::Group gk = root.CreateGroup(layout::kConstraints);
   constraint_mem = layout::ConstraintType(false);
   constraint_file = layout::ConstraintType(true);
-  constraints.Create(gk, "rows", constraint_file.get(), 0, sizeof(layout::ConstraintRecord), z);
+  constraints.Create(gk, "rows", constraint_file.get(), constraint_mem.get(), 0,
+                     sizeof(layout::ConstraintRecord), z);
 
   h5::Group gtc = root.CreateGroup(layout::kToolContacts);
   contact_mem = layout::ToolContactType(false);
   contact_file = layout::ToolContactType(true);
-  contacts.Create(gtc, "rows", contact_file.get(), 0, sizeof(layout::ToolContactRecord), z);
+  contacts.Create(gtc, "rows", contact_file.get(), contact_mem.get(), 0,
+                  sizeof(layout::ToolContactRecord), z);
+}
+
+template <class F>
+void RunWriter::Impl::ForEachSeries(F f) {
+  for (BodyOut& b : bodies) {
+    f(b.positions), f(b.node_count), f(b.element_count), f(b.element_alive);
+    f(b.alive_elements), f(b.xdmf_points);
+  }
+  for (ThreadOut& t : threads) {
+    f(t.positions), f(t.node_count), f(t.node_alive), f(t.alive_segments), f(t.xdmf_points);
+  }
+  for (BoneOut& b : bones) f(b.vertices), f(b.triangles), f(b.removed_volume);
+  for (ToolOut& o : tools) f(o.pose), f(o.jaw), f(o.buttons), f(o.force), f(o.active), f(o.slot);
+  f(slot_instrument), f(slot_pose), f(slot_jaw), f(slot_buttons), f(slot_force);
+  f(camera_pose), f(camera_lens_roll), f(camera_head_roll);
+  f(constraints), f(contacts);
+  f(events_end), f(rng_state), f(next_constraint_id), f(step);
+}
+
+std::size_t RunWriter::Impl::BufferedBytes() {
+  std::size_t bytes = time.buffered_bytes() + frame_events.size() * sizeof(layout::EventRecord);
+  ForEachSeries([&](const auto& series) { bytes += series.buffered_bytes(); });
+  return bytes;
+}
+
+void RunWriter::Impl::WriteBlock() {
+  if (!frame_events.empty()) {  // the rows before /events_end refers to them
+    const hsize_t n = frame_events.size();
+    const hsize_t extent = static_cast<hsize_t>(events_written) + n;
+    const hsize_t start = static_cast<hsize_t>(events_written);
+    events.SetExtent(1, &extent);
+    events.Write(1, &start, &n, event_mem.get(), frame_events.data());
+    events_written += static_cast<std::int64_t>(n);
+    frame_events.clear();
+  }
+  ForEachSeries([](auto& series) { series.WriteOut(); });
+  time.WriteOut();
+  written_frames = frames;
 }
 
 void RunWriter::Impl::Validate(const State& s) const {
@@ -295,7 +350,7 @@ void RunWriter::Impl::Validate(const State& s) const {
       }
     }
   }
-  std::vector<int> seen(instrument_count, 0);
+  seen.assign(instrument_count, 0);
   for (const ToolState& t : s.tools) {
     if (t.instrument < -1 || t.instrument >= static_cast<int>(instrument_count)) {
       fail("tool slot holds unknown instrument " + std::to_string(t.instrument));
@@ -307,40 +362,37 @@ void RunWriter::Impl::Validate(const State& s) const {
 }
 
 void RunWriter::Impl::WriteFrame(const State& s) {
-  const auto t = static_cast<hsize_t>(frames);
-
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     const SoftBodyState& sb = s.soft_bodies[i];
     BodyOut& b = bodies[i];
     const auto n = static_cast<hsize_t>(sb.x.cols());
     const hsize_t e = sb.tets.size();
-    b.positions.Write(t, {n, 3}, H5T_NATIVE_DOUBLE, sb.x.data());
-    b.node_count.Push(t, static_cast<std::int64_t>(n));
+    b.positions.Write({n, 3}, sb.x.data());
+    b.node_count.Push(static_cast<std::int64_t>(n));
     if (e > b.written.size()) {  // tets appended by splitting
       const std::size_t first = b.written.size();
       b.elements.AppendRows(H5T_NATIVE_INT32, sb.tets[first].data(), e - first);
       b.written.insert(b.written.end(), sb.tets.begin() + static_cast<std::ptrdiff_t>(first),
                        sb.tets.end());
     }
-    b.element_count.Push(t, static_cast<std::int64_t>(e));
-    b.element_alive.Write(t, {e}, H5T_NATIVE_UINT8, sb.tet_alive.data());
+    b.element_count.Push(static_cast<std::int64_t>(e));
+    b.element_alive.Write({e}, sb.tet_alive.data());
     ints.clear();
     for (std::size_t k = 0; k < e; ++k) {
       if (sb.tet_alive[k] != 0) ints.insert(ints.end(), sb.tets[k].begin(), sb.tets[k].end());
     }
-    b.alive_elements.Write(t, H5T_NATIVE_INT32, ints.data(),
-                           static_cast<std::int64_t>(ints.size() / 4));
+    b.alive_elements.Write(ints.data(), static_cast<std::int64_t>(ints.size() / 4));
     floats.assign(sb.x.data(), sb.x.data() + sb.x.size());
-    b.xdmf_points.Write(t, H5T_NATIVE_FLOAT, floats.data(), static_cast<std::int64_t>(n));
+    b.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
   }
 
   for (std::size_t i = 0; i < threads.size(); ++i) {
     const ThreadState& st = s.threads[i];
     ThreadOut& th = threads[i];
     const auto n = static_cast<hsize_t>(st.x.cols());
-    th.positions.Write(t, {n, 3}, H5T_NATIVE_DOUBLE, st.x.data());
-    th.node_count.Push(t, static_cast<std::int64_t>(n));
-    th.node_alive.Write(t, {n}, H5T_NATIVE_UINT8, st.node_alive.data());
+    th.positions.Write({n, 3}, st.x.data());
+    th.node_count.Push(static_cast<std::int64_t>(n));
+    th.node_alive.Write({n}, st.node_alive.data());
     ints.clear();
     for (hsize_t k = 0; k + 1 < n; ++k) {  // threads are chains 0-1-...-(n-1)
       if (st.node_alive[k] != 0 && st.node_alive[k + 1] != 0) {
@@ -348,20 +400,18 @@ void RunWriter::Impl::WriteFrame(const State& s) {
         ints.push_back(static_cast<std::int32_t>(k + 1));
       }
     }
-    th.alive_segments.Write(t, H5T_NATIVE_INT32, ints.data(),
-                            static_cast<std::int64_t>(ints.size() / 2));
+    th.alive_segments.Write(ints.data(), static_cast<std::int64_t>(ints.size() / 2));
     floats.assign(st.x.data(), st.x.data() + st.x.size());
-    th.xdmf_points.Write(t, H5T_NATIVE_FLOAT, floats.data(), static_cast<std::int64_t>(n));
+    th.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
   }
 
   for (std::size_t i = 0; i < bones.size(); ++i) {
     const BoneState& sb = s.bones[i];
-    bones[i].vertices.Write(t, H5T_NATIVE_DOUBLE, sb.surface.nodes.data(),
+    bones[i].vertices.Write(sb.surface.nodes.data(),
                             static_cast<std::int64_t>(sb.surface.nodes.cols()));
-    bones[i].triangles.Write(t, H5T_NATIVE_INT32,
-                             sb.surface.tris.empty() ? nullptr : sb.surface.tris[0].data(),
+    bones[i].triangles.Write(sb.surface.tris.empty() ? nullptr : sb.surface.tris[0].data(),
                              static_cast<std::int64_t>(sb.surface.tris.size()));
-    bones[i].removed_volume.Push(t, sb.removed_volume_mm3);
+    bones[i].removed_volume.Push(sb.removed_volume_mm3);
   }
 
   // Per instrument of the Model: which slot holds it, if any.
@@ -386,12 +436,12 @@ void RunWriter::Impl::WriteFrame(const State& s) {
       jaw = held->jaw;
       buttons = held->buttons;
     }
-    o.pose.Write(t, {7}, H5T_NATIVE_DOUBLE, pose.data());
-    o.jaw.Push(t, jaw);
-    o.buttons.Push(t, buttons);
-    o.force.Write(t, {3}, H5T_NATIVE_DOUBLE, force.data());
-    o.active.Push(t, static_cast<std::uint8_t>(held != nullptr ? 1 : 0));
-    o.slot.Push(t, slot);
+    o.pose.Write({7}, pose.data());
+    o.jaw.Push(jaw);
+    o.buttons.Push(buttons);
+    o.force.Write({3}, force.data());
+    o.active.Push(static_cast<std::uint8_t>(held != nullptr ? 1 : 0));
+    o.slot.Push(slot);
   }
 
   {
@@ -410,44 +460,45 @@ void RunWriter::Impl::WriteFrame(const State& s) {
       for (int c = 0; c < 3; ++c) force[3 * k + static_cast<std::size_t>(c)] = ts.force_n[c];
     }
     constexpr hsize_t kS = kToolSlots;
-    slot_instrument.Write(t, {kS}, H5T_NATIVE_INT32, inst.data());
-    slot_pose.Write(t, {kS, 7}, H5T_NATIVE_DOUBLE, pose.data());
-    slot_jaw.Write(t, {kS}, H5T_NATIVE_DOUBLE, jaw.data());
-    slot_buttons.Write(t, {kS}, H5T_NATIVE_UINT8, buttons.data());
-    slot_force.Write(t, {kS, 3}, H5T_NATIVE_DOUBLE, force.data());
+    slot_instrument.Write({kS}, inst.data());
+    slot_pose.Write({kS, 7}, pose.data());
+    slot_jaw.Write({kS}, jaw.data());
+    slot_buttons.Write({kS}, buttons.data());
+    slot_force.Write({kS, 3}, force.data());
   }
 
   const std::array<double, 7> cam = PoseRow(s.camera.pose);
-  camera_pose.Write(t, {7}, H5T_NATIVE_DOUBLE, cam.data());
-  camera_lens_roll.Push(t, s.camera.lens_roll_rad);
-  camera_head_roll.Push(t, s.camera.head_roll_rad);
+  camera_pose.Write({7}, cam.data());
+  camera_lens_roll.Push(s.camera.lens_roll_rad);
+  camera_head_roll.Push(s.camera.head_roll_rad);
 
   records.clear();
   for (const SpringConstraint& c : s.constraints) records.push_back(layout::ToRecord(c));
-  constraints.Write(t, constraint_mem.get(), records.data(),
-                    static_cast<std::int64_t>(records.size()));
+  constraints.Write(records.data(), static_cast<std::int64_t>(records.size()));
 
   contact_records.clear();
   for (const ToolContact& c : s.tool_contacts) contact_records.push_back(layout::ToRecord(c));
-  contacts.Write(t, contact_mem.get(), contact_records.data(),
-                 static_cast<std::int64_t>(contact_records.size()));
+  contacts.Write(contact_records.data(), static_cast<std::int64_t>(contact_records.size()));
 
   if (last_events_step != s.step) {
     for (const Event& e : s.events) pending_events.push_back(layout::ToRecord(e));
     last_events_step = s.step;
   }
-  events.AppendRows(event_mem.get(), pending_events.data(), pending_events.size());
+  frame_events.insert(frame_events.end(), pending_events.begin(), pending_events.end());
   events_total += static_cast<std::int64_t>(pending_events.size());
   pending_events.clear();
-  events_end.Push(t, events_total);
+  events_end.Push(events_total);
 
-  rng_state.Push(t, s.rng_state);
-  next_constraint_id.Push(t, s.next_constraint_id);
-  step.Push(t, s.step);
-  time.Push(t, s.time_s);  // last: a frame counts once /time has it
+  rng_state.Push(s.rng_state);
+  next_constraint_id.Push(s.next_constraint_id);
+  step.Push(s.step);
+  time.Push(s.time_s);  // last: a frame counts once /time has it
   times.push_back(s.time_s);
   last_step = s.step;
   ++frames;
+  if (frames - written_frames >= options.block_frames || BufferedBytes() >= options.block_bytes) {
+    WriteBlock();
+  }
 }
 
 void RunWriter::Impl::WriteXdmf() {
@@ -502,6 +553,7 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
       options.float_deflate_level > 9) {
     throw std::invalid_argument("RunWriter: deflate levels must be in 0..9");
   }
+  if (options.block_frames < 1) throw std::invalid_argument("RunWriter: block_frames must be >= 1");
   CheckNames(model, "bodies.name", model.soft_bodies);
   CheckNames(model, "bodies.name", model.threads);
   CheckNames(model, "bodies.name", model.bones);
@@ -530,6 +582,7 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
     m.CreateLayout(model, initial);
     m.file.StartSwmrWrite();  // from here on no object may be created
     m.WriteFrame(initial);
+    m.WriteBlock();
     m.file.Flush();
     m.flushed = m.frames;
     m.last_flush_time = initial.time_s;
@@ -572,6 +625,7 @@ void RunWriter::Append(const State& s) {
 void RunWriter::Flush() {
   Impl& m = *impl_;
   if (m.closed) throw std::logic_error("RunWriter: Flush after Close");
+  m.WriteBlock();
   m.file.Flush();
   m.flushed = m.frames;
   m.last_flush_time = m.times.empty() ? 0.0 : m.times.back();
@@ -584,6 +638,7 @@ void RunWriter::Close() {
   m.closed = true;  // even if what follows throws: never write to a half-closed file
   std::exception_ptr error;
   try {
+    m.WriteBlock();
     m.file.Flush();
     m.flushed = m.frames;
   } catch (...) {

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Compares two run files dataset by dataset and attribute by attribute (bytes, shapes, dtypes).
+"""Compares two run files dataset by dataset and attribute by attribute (bytes, shapes, dtypes,
+chunking, filters, fill values).
 
 usage: compare_runs.py A.h5 B.h5 [--quiet]
 Wall-clock metadata (/meta attribute created_utc) is the only thing allowed to differ; the HDF5
@@ -11,6 +12,8 @@ import h5py
 import numpy as np
 
 WALL_CLOCK = {("/meta", "created_utc")}
+# Storage settings that must match too (chunk shape, filters, growable dimensions).
+STORAGE = ("chunks", "compression", "compression_opts", "shuffle", "maxshape")
 
 
 def items(h):
@@ -56,6 +59,14 @@ def main():
                     diffs.append(f"{path}@{k}: {xa[k]!r} != {xb[k]!r}")
             if isinstance(oa, h5py.Dataset):
                 compared += 1
+                for prop in STORAGE:
+                    if getattr(oa, prop) != getattr(ob, prop):
+                        diffs.append(f"{path}: {prop} {getattr(oa, prop)} vs {getattr(ob, prop)}")
+                # (h5py crashes on the fill value of variable-length strings: skipped)
+                if oa.dtype.kind != "O" and ob.dtype.kind != "O":
+                    fa, fb = oa.fillvalue, ob.fillvalue
+                    if np.asarray(fa).tobytes() != np.asarray(fb).tobytes():
+                        diffs.append(f"{path}: fill value {fa!r} vs {fb!r}")
                 if oa.dtype != ob.dtype or oa.shape != ob.shape:
                     diffs.append(f"{path}: {oa.dtype}{oa.shape} vs {ob.dtype}{ob.shape}")
                 elif oa.dtype.kind == "O":  # variable-length strings

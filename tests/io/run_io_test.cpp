@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/io/hdf5.h"
@@ -100,6 +101,60 @@ TEST(RunIo, SameFramesGiveIdenticalDatasets) {
   const std::string ta = slurp(XdmfPathFor(a)), tb = slurp(XdmfPathFor(b));
   EXPECT_FALSE(ta.empty());
   EXPECT_EQ(ta, tb);
+}
+
+// Frames are buffered and written in blocks: the block size (whole blocks, blocks cut by a row
+// shape change at the frame-6 split, blocks cut by a flush every 5 frames, a byte budget) must
+// not change a single dataset, chunk layout, filter or the sidecar.
+TEST(RunIo, BlockSizeDoesNotChangeTheFile) {
+  ASSERT_TRUE(testing::HavePythonH5py()) << "python3-h5py is required by the io tests";
+  const Model model = MakeModel();
+  constexpr int kLong = 23;
+  auto write = [&](const std::string& name, std::int64_t block_frames, std::size_t block_bytes) {
+    const std::string path = TestDir(name) + "/run.h5";
+    RunWriterOptions options;
+    options.block_frames = block_frames;
+    options.block_bytes = block_bytes;
+    RunWriter w(path, model, MakeFrame(model, 0), options);
+    for (int f = 1; f < kLong; ++f) {
+      State s = MakeFrame(model, f);
+      if (f == 3) w.RecordEvents(s);  // recorded early: Append must not record them again
+      if (f == 12) {                  // events of a step between two frames
+        State between = MakeFrame(model, 3);
+        between.step = s.step - 1;
+        w.RecordEvents(between);
+      }
+      w.Append(s);
+      EXPECT_EQ(w.frames(), f + 1);
+    }
+    w.Close();
+    return path;
+  };
+  const std::string one = write("block_1", 1, std::size_t{16} << 20);
+  auto slurp = [](const std::string& p) {
+    std::ifstream in(p);
+    return std::string((std::istreambuf_iterator<char>(in)), {});
+  };
+  for (const auto& [name, frames, bytes] :
+       {std::tuple<const char*, std::int64_t, std::size_t>{"block_3", 3, std::size_t{16} << 20},
+        {"block_4", 4, std::size_t{16} << 20},
+        {"block_64", 64, std::size_t{16} << 20},
+        {"block_bytes", 64, 700}}) {
+    const std::string other = write(name, frames, bytes);
+    EXPECT_EQ(testing::RunPython("compare_runs.py", one + " " + other), 0) << name;
+    EXPECT_EQ(slurp(XdmfPathFor(one)), slurp(XdmfPathFor(other))) << name;
+    const RunReader r(other);
+    ASSERT_EQ(r.frame_count(), kLong) << name;
+    EXPECT_TRUE(BitwiseEqual(r.Frame(6), MakeFrame(model, 6))) << name;
+    EXPECT_TRUE(BitwiseEqual(r.Frame(kLong - 1), MakeFrame(model, kLong - 1))) << name;
+  }
+  EXPECT_THROW(
+      {
+        RunWriterOptions bad;
+        bad.block_frames = 0;
+        RunWriter w(TestDir("block_0") + "/run.h5", model, MakeFrame(model, 0), bad);
+      },
+      std::invalid_argument);
 }
 
 TEST(RunIo, BadPathsGiveClearErrors) {

@@ -68,6 +68,8 @@ class Object {
       : h_(std::move(h)), file_(std::move(file)), path_(std::move(path)) {}
   /// Throws Error(file, path, what) if status < 0.
   void Check(std::int64_t status, const std::string& what) const;
+  /// The same without building a std::string unless it fails (hot paths).
+  void Check(std::int64_t status, const char* what) const;
 
   Handle h_;
   std::string file_;
@@ -99,9 +101,16 @@ class Dataset : public Object {
   /// Current extent.
   std::vector<hsize_t> dims() const;
   /// Grows (or shrinks) the extent; chunked datasets only.
-  void SetExtent(const std::vector<hsize_t>& dims);
+  void SetExtent(const std::vector<hsize_t>& dims) {
+    SetExtent(static_cast<int>(dims.size()), dims.data());
+  }
+  /// As above with `rank` entries at `dims` (no C++ heap allocation: the writer's block path).
+  void SetExtent(int rank, const hsize_t* dims);
   /// Writes the hyperslab [start, start+count) from contiguous memory of type `mem_type`.
   void Write(const std::vector<hsize_t>& start, const std::vector<hsize_t>& count, hid_t mem_type,
+             const void* data);
+  /// As above with `rank` entries at `start` and `count` (no C++ heap allocation).
+  void Write(int rank, const hsize_t* start, const hsize_t* count, hid_t mem_type,
              const void* data);
   /// Reads the hyperslab [start, start+count) into contiguous memory of type `mem_type`.
   void Read(const std::vector<hsize_t>& start, const std::vector<hsize_t>& count, hid_t mem_type,

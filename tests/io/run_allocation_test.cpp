@@ -1,0 +1,81 @@
+// A steady-state RunWriter::Append makes no C++ heap allocation (project convention): the
+// global operator new is counted in this test binary while frames are appended, including the
+// Append that writes a whole buffered block to the file. (HDF5 itself allocates with malloc in
+// C; that is not counted, and is per block, not per frame.)
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <new>
+
+#include "arthrosim/io/run_reader.h"
+#include "arthrosim/io/run_writer.h"
+#include "run_fixture.h"
+
+namespace {
+long g_allocations = 0;  // counted by the replacements below (single-threaded test)
+
+void* Allocate(std::size_t n, std::size_t align) {
+  ++g_allocations;
+  const std::size_t size = (std::max<std::size_t>(n, 1) + align - 1) / align * align;
+  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, size) : std::malloc(size);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+
+void* operator new(std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
+void* operator new[](std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
+void* operator new(std::size_t n, std::align_val_t a) {
+  return Allocate(n, static_cast<std::size_t>(a));
+}
+void* operator new[](std::size_t n, std::align_val_t a) {
+  return Allocate(n, static_cast<std::size_t>(a));
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+namespace arthrosim::io {
+namespace {
+
+using testing::MakeFrame;
+using testing::MakeModel;
+
+TEST(RunAllocation, SteadyStateAppendDoesNotAllocate) {
+  Model model = MakeModel();
+  model.options.flush_interval_s = 1e9;  // flushes rewrite the .xmf text: not a per-frame cost
+  const std::string path = testing::TestDir("allocation") + "/run.h5";
+  RunWriterOptions options;
+  options.block_frames = 64;
+  // The per-frame mirrors kept for the .xmf (times, block offsets/counts) are std::vectors that
+  // double their capacity at powers of two: frames 129..255 (sizes 130..256) fit in 256 slots,
+  // so the window below sees no mirror growth. It includes the block written at 192 frames.
+  constexpr int kFirst = 129, kEnd = 256;
+  std::vector<State> frames;
+  for (int f = kFirst; f < kEnd; ++f) frames.push_back(MakeFrame(model, f));
+
+  RunWriter w(path, model, MakeFrame(model, 0), options);
+  for (int f = 1; f < kFirst; ++f) w.Append(MakeFrame(model, f));  // growth, events, 2 blocks
+  const long before = g_allocations;
+  for (const State& s : frames) w.Append(s);
+  const long allocations = g_allocations - before;
+  EXPECT_EQ(allocations, 0) << "over " << frames.size() << " appends";
+  // The counter does count: building one frame allocates.
+  const long probe = g_allocations;
+  (void)MakeFrame(model, 1);
+  EXPECT_GT(g_allocations, probe);
+
+  w.Close();
+  const RunReader r(path);
+  ASSERT_EQ(r.frame_count(), kEnd);
+  EXPECT_TRUE(BitwiseEqual(r.Frame(kEnd - 1), frames.back()));
+  EXPECT_TRUE(BitwiseEqual(r.Frame(192), frames[192 - kFirst]));
+}
+
+}  // namespace
+}  // namespace arthrosim::io
