@@ -388,6 +388,12 @@ int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converg
       const double c = l - t.scalar + e.dot(de) / l;
       s->lambda_new[j] = (c < 0 ? t.k_compress : t.k) * c;
     }
+    if (step_max < p.newton_tolerance_mm) {  // converged: take the tiny step without a search
+      for (int i = 0; i < s->num_nodes; ++i)
+        if (s->dof[i] >= 0) x->col(i) += Eigen::Map<const Vec3>(s->step.data() + 3 * i);
+      *converged = true;
+      break;
+    }
     double alpha = 1.0;
     bool accepted = false;
     double e1 = e0;
