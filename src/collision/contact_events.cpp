@@ -63,33 +63,35 @@ Vec3 ContactPoint(const State& state, const physics::PointContact& c) {
 }  // namespace
 
 void UpdateContactEvents(const Model& model, const State& state, const CollisionOutput& out,
-                         std::vector<ToolContact>* touching, std::vector<Event>* events) {
+                         std::vector<ToolContact>* touching, std::vector<Event>* events,
+                         ContactEventScratch* scratch) {
+  ContactEventScratch local;
+  ContactEventScratch& w = scratch ? *scratch : local;
+  std::vector<ToolContact>& now = w.now;
+  now.clear();
+  w.weight.clear();
   // This step's pairs: force-weighted mean point of the solved contacts of each (tool, body).
-  struct Acc {
-    ToolContact pair;
-    double weight = 0;
-  };
-  std::vector<Acc> acc;
   for (const physics::PointContact& c : out.contacts) {  // sorted: one run per pair
     if (c.tool_slot < 0 || !(c.force_n > 0)) continue;
     const Kind kind =
         c.target == physics::PointContact::Target::kSoftBody ? Kind::kSoftBody : Kind::kThread;
-    if (acc.empty() || acc.back().pair.tool_slot != c.tool_slot ||
-        acc.back().pair.body_kind != kind || acc.back().pair.body != c.index) {
-      acc.push_back(Acc{ToolContact{c.tool_slot, kind, c.index, Vec3::Zero()}, 0});
+    if (now.empty() || now.back().tool_slot != c.tool_slot || now.back().body_kind != kind ||
+        now.back().body != c.index) {
+      now.push_back(ToolContact{c.tool_slot, kind, c.index, Vec3::Zero()});
+      w.weight.push_back(0);
     }
-    acc.back().pair.position_mm += c.force_n * ContactPoint(state, c);
-    acc.back().weight += c.force_n;
+    now.back().position_mm += c.force_n * ContactPoint(state, c);
+    w.weight.back() += c.force_n;
   }
-  std::vector<ToolContact> now;
-  for (Acc& a : acc) {
-    a.pair.position_mm /= a.weight;
-    now.push_back(a.pair);
-  }
+  for (std::size_t k = 0; k < now.size(); ++k) now[k].position_mm /= w.weight[k];
   now.insert(now.end(), out.bone_touches.begin(), out.bone_touches.end());
-  std::stable_sort(now.begin(), now.end(), [](const ToolContact& a, const ToolContact& b) {
-    return PairKey(a) < PairKey(b);
-  });
+  // Stable insertion sort by pair (a handful of pairs; no temporary buffer).
+  for (std::size_t k = 1; k < now.size(); ++k) {
+    const ToolContact c = now[k];
+    std::size_t m = k;
+    for (; m > 0 && PairKey(c) < PairKey(now[m - 1]); --m) now[m] = now[m - 1];
+    now[m] = c;
+  }
   // Merge the two sorted lists.
   auto emit = [&](const char* kind, const ToolContact& c) {
     Event e;
@@ -114,7 +116,7 @@ void UpdateContactEvents(const Model& model, const State& state, const Collision
       ++j;
     }
   }
-  *touching = std::move(now);
+  touching->assign(now.begin(), now.end());
 }
 
 }  // namespace arthrosim::collision

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <span>
 #include <tuple>
 
 namespace arthrosim::collision {
@@ -296,6 +297,9 @@ void ToolTissue(Builder* B, int slot, const Sweep& sw, int body, CollisionWorld:
   thread_local std::vector<std::int32_t> tris, verts;
   tris.clear();
   verts.clear();
+  // Sized for the whole surface once, so a bigger overlap later does not allocate.
+  tris.reserve(e.surface.local_tris.size());
+  verts.reserve(3 * e.surface.local_tris.size());
   // Triangles that may come within reach of the core at some substep (every vertex within reach
   // is a corner of one of them).
   e.bvh.QueryIf([&](const Box& b) { return sw.Near(reach, b); }, &tris);
@@ -1059,12 +1063,13 @@ void JoinFlags(const Model& model, const State& state, std::size_t b, double ban
   }
 }
 
-// Fills *sweeps (reusing its storage) with the swept contact parts of one tool slot; *prims and
-// *before receive this step's and last step's primitives (sweeps point into *prims).
-void MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
-                const CollisionParams& params, std::vector<ToolPrimitive>* prims,
-                std::vector<ToolPrimitive>* before, std::vector<Sweep>* sweeps,
-                std::int32_t* substeps) {
+// Fills the first entries of *sweeps (reusing their storage) with the swept contact parts of one
+// tool slot and returns how many; *prims and *before receive this step's and last step's
+// primitives (sweeps point into *prims).
+std::size_t MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
+                       const CollisionParams& params, std::vector<ToolPrimitive>* prims,
+                       std::vector<ToolPrimitive>* before, std::vector<Sweep>* sweeps,
+                       std::int32_t* substeps) {
   ToolPrimitivesWorld(model, cur, prims);
   if (prev.instrument == cur.instrument) {
     ToolPrimitivesWorld(model, prev, before);
@@ -1083,7 +1088,11 @@ void MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
   std::size_t used = 0;
   for (std::size_t j = 0; j < prims->size(); ++j) {
     if (!(*prims)[j].contacts) continue;
-    if (sweeps->size() <= used) sweeps->emplace_back();
+    if (sweeps->size() <= used) {
+      sweeps->emplace_back();  // sized once for the largest substep count
+      sweeps->back().sub.reserve(static_cast<std::size_t>(params.max_substeps) + 1);
+      sweeps->back().sub_box.reserve(static_cast<std::size_t>(params.max_substeps) + 1);
+    }
     Sweep& sw = (*sweeps)[used++];
     sw.prim = &(*prims)[j];
     sw.sub.clear();
@@ -1105,7 +1114,8 @@ void MakeSweeps(const Model& model, const ToolState& prev, const ToolState& cur,
       sw.sub_box.push_back(cb);
     }
   }
-  sweeps->resize(used);  // shrinking keeps the capacity
+  // Entries past `used` are kept (with their storage) for later steps, not destroyed.
+  return used;
 }
 
 }  // namespace
@@ -1194,9 +1204,10 @@ void Detect(const Model& model, const State& state,
   out->bone_touches.clear();
   for (int slot = 0; slot < kToolSlots; ++slot) {
     out->substeps[slot] = 0;
-    std::vector<Sweep>& sweeps = slot_sweeps[slot];
-    MakeSweeps(model, prev_tools[slot], state.tools[slot], params, &prims[slot], &before[slot],
-               &sweeps, &out->substeps[slot]);
+    const std::size_t used =
+        MakeSweeps(model, prev_tools[slot], state.tools[slot], params, &prims[slot], &before[slot],
+                   &slot_sweeps[slot], &out->substeps[slot]);
+    const std::span<const Sweep> sweeps(slot_sweeps[slot].data(), used);
     for (std::size_t b = 0; b < world->soft.size(); ++b) {
       for (const Sweep& sw : sweeps) {
         ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);

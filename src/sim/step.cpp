@@ -67,8 +67,9 @@ void AccumulateToolForces(const Workspace& ws, State* state) {
 }
 
 // Contact start/end events, by comparing this step's touching pairs with the last step's.
-void RecordContactEvents(const Model& model, const Workspace& ws, State* state) {
-  collision::UpdateContactEvents(model, *state, ws.contacts, &state->tool_contacts, &state->events);
+void RecordContactEvents(const Model& model, Workspace* ws, State* state) {
+  collision::UpdateContactEvents(model, *state, ws->contacts, &state->tool_contacts, &state->events,
+                                 &ws->event_scratch);
 }
 
 // Clock: step index and time are derived from the index so they never drift.
@@ -99,7 +100,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   SolveThreads(model, state, ws);
   AccumulateToolForces(*ws, state);
   AdvanceTime(model, state);
-  RecordContactEvents(model, *ws, state);
+  RecordContactEvents(model, ws, state);
   ws->timings.total_ms = MsSince(t0);
 }
 

@@ -171,11 +171,18 @@ void Detect(const Model& model, const State& state,
 /// solver filled force_n) plus the tool-bone reaction.
 std::array<Vec3, kToolSlots> ToolForces(const CollisionOutput& out);
 
+/// Work lists of UpdateContactEvents, kept by the caller so a step need not allocate.
+struct ContactEventScratch {
+  std::vector<ToolContact> now;
+  std::vector<double> weight;
+};
+
 /// Compares this step's touching (tool, body) pairs (solved contacts with force_n > 0, and
 /// tool-bone touches) with *touching (last step's), appends contact_start / contact_end events
 /// (detail "region=<name>" if the contact point is in a Model region of that body) to *events,
-/// and replaces *touching with this step's pairs (sorted).
+/// and replaces *touching with this step's pairs (sorted). scratch (optional) is reused.
 void UpdateContactEvents(const Model& model, const State& state, const CollisionOutput& out,
-                         std::vector<ToolContact>* touching, std::vector<Event>* events);
+                         std::vector<ToolContact>* touching, std::vector<Event>* events,
+                         ContactEventScratch* scratch = nullptr);
 
 }  // namespace arthrosim::collision

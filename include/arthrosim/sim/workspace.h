@@ -26,9 +26,10 @@ struct Workspace {
   physics::SoftSystem soft;
   physics::ThreadWorkspace threads;
   collision::CollisionParams collision_params;
-  collision::CollisionWorld collision;  ///< surfaces and FCL trees, refit every step
-  collision::CollisionOutput contacts;  ///< this step's contacts (collision -> solvers)
-  physics::SpringSet springs;           ///< runtime constraints, one per deformable end
+  collision::CollisionWorld collision;           ///< surfaces and FCL trees, refit every step
+  collision::CollisionOutput contacts;           ///< this step's contacts (collision -> solvers)
+  collision::ContactEventScratch event_scratch;  ///< work lists of the contact events stage
+  physics::SpringSet springs;                    ///< runtime constraints, one per deformable end
   StepTimings timings;
 };
 
