@@ -557,7 +557,11 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
     for (int j = 0; j < m; ++j) {
       const Term& t = s->stretch_terms[j];
       const bool act = s->tri_active[j];
-      s->tri_b[j] = act ? w(t.node[0]) + w(t.node[1]) : 1.0;
+      // A relative 1e-9 compliance keeps the pivots positive when the active set is redundant
+      // (a straight chain fixed at both ends has more length rows than axial freedoms: J W J^T
+      // is singular and the last pivot would be 0/0). It changes the projected lengths by
+      // ~1e-9 relative.
+      s->tri_b[j] = act ? (w(t.node[0]) + w(t.node[1])) * (1.0 + 1e-9) : 1.0;
       if (!act) s->tri_r[j] = 0;
       s->tri_c[j] = 0;
       if (act && j + 1 < m && s->tri_active[j + 1] && s->stretch_terms[j + 1].node[0] == t.node[1])
