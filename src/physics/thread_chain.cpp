@@ -557,11 +557,7 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
     for (int j = 0; j < m; ++j) {
       const Term& t = s->stretch_terms[j];
       const bool act = s->tri_active[j];
-      // A relative 1e-9 compliance keeps the pivots positive when the active set is redundant
-      // (a straight chain fixed at both ends has more length rows than axial freedoms: J W J^T
-      // is singular and the last pivot would be 0/0). It changes the projected lengths by
-      // ~1e-9 relative.
-      s->tri_b[j] = act ? (w(t.node[0]) + w(t.node[1])) * (1.0 + 1e-9) : 1.0;
+      s->tri_b[j] = act ? w(t.node[0]) + w(t.node[1]) : 1.0;
       if (!act) s->tri_r[j] = 0;
       s->tri_c[j] = 0;
       if (act && j + 1 < m && s->tri_active[j + 1] && s->stretch_terms[j + 1].node[0] == t.node[1])
@@ -570,7 +566,12 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
     }
     for (int j = 1; j < m; ++j) {  // Thomas algorithm (positive definite, no pivoting)
       const double f = s->tri_a[j] / s->tri_b[j - 1];
+      const double diag = s->tri_b[j];
       s->tri_b[j] -= f * s->tri_c[j - 1];
+      // A redundant active set (a straight chain fixed at both ends has more length rows than
+      // axial freedoms: J W J^T is singular) leaves a zero pivot, and 0/0 would poison every
+      // thread; a floor keeps it positive (the null direction moves no node: J^T n = 0).
+      if (!(s->tri_b[j] > 1e-12 * diag)) s->tri_b[j] = 1e-12 * diag;
       s->tri_r[j] -= f * s->tri_r[j - 1];
     }
     for (int j = m - 1; j >= 0; --j) {
