@@ -654,19 +654,25 @@ void SoftSystem::BuildPreconditioner(double h) {
     if (factor_.ok()) {
       // Warp: the current node rotation (polar of the sum of incident element rotations, in
       // (body, tet) order) times the inverse anchor rotation.
-      node_sum_.resize(static_cast<std::size_t>(slots_));
-      ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
-        for (std::int64_t s = begin; s < end; ++s) {
-          const auto i = static_cast<std::size_t>(s);
-          Mat3& sum = node_sum_[i];
-          sum.setZero();  // fixed slots: zero, whose polar factor is the identity
-          if (!free_[i]) continue;
-          for (const ElemRef& r : incident_[i]) {
-            const Body& bd = bodies_[static_cast<std::size_t>(r.body)];
-            if (bd.rest[static_cast<std::size_t>(r.tet)].degenerate) continue;
-            sum += bd.rotation[static_cast<std::size_t>(r.tet)];
+      // Sums by one pass over the elements in (body, tet) order, which is each slot's incident
+      // order, so every sum is added in the same order as over its incident list (a slot that
+      // a merged tet holds twice counts that tet once).
+      node_sum_.assign(static_cast<std::size_t>(slots_), Mat3::Zero());
+      for (const Body& bd : bodies_) {
+        for (std::size_t t = 0; t < bd.rest.size(); ++t) {
+          if (!bd.alive[t] || bd.rest[t].degenerate) continue;
+          const auto& sl = bd.tet_slot[t];
+          for (int a = 0; a < 4; ++a) {
+            const std::int32_t slot = sl[static_cast<std::size_t>(a)];
+            bool repeated = false;
+            for (int q = 0; q < a; ++q)
+              repeated = repeated || sl[static_cast<std::size_t>(q)] == slot;
+            if (!repeated && free_[static_cast<std::size_t>(slot)])
+              node_sum_[static_cast<std::size_t>(slot)] += bd.rotation[t];
           }
         }
+      }
+      ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
         // Side by side (vectorised); each lane's result depends on its own matrix only.
         const auto b = static_cast<std::size_t>(begin);
         PolarRotations(node_sum_.data() + b, node_rot_.data() + b, static_cast<int>(end - begin));
