@@ -1160,15 +1160,13 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
   for (std::size_t g = 0; g < state.bones.size(); ++g) {
     const mesh::TriMesh& m = state.bones[g].surface;
     CollisionWorld::BoneEntry& e = world->bones[g];
-    // Bitwise comparison in two block compares (vector<array>::operator== compares element by
-    // element): stricter than ==, so at worst a needless rebuild.
-    const bool same =
-        e.built && e.surface.nodes.cols() == m.nodes.cols() &&
-        e.surface.tris.size() == m.tris.size() &&
-        std::memcmp(e.surface.tris.data(), m.tris.data(), m.tris.size() * sizeof(mesh::Tri)) == 0 &&
-        std::memcmp(e.surface.nodes.data(), m.nodes.data(),
-                    static_cast<std::size_t>(m.nodes.size()) * sizeof(double)) == 0;
+    // Bone surfaces change only through code that increments their revision; the sizes are a
+    // cheap second check. (A bitwise comparison of both surfaces cost ~10% of the stage.)
+    const bool same = e.built && e.revision == state.bones[g].revision &&
+                      e.surface.nodes.cols() == m.nodes.cols() &&
+                      e.surface.tris.size() == m.tris.size();
     if (same) continue;
+    e.revision = state.bones[g].revision;
     e.surface = m;
     e.indexed = MakeSurface(CanonicalTriangles(m.tris));
     FillPositions(m.nodes, e.indexed.vertices, &e.positions);

@@ -319,6 +319,8 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     d.triangles.data.Read({toff, 0}, {tn, 3}, H5T_NATIVE_INT32,
                           s.surface.tris.empty() ? nullptr : s.surface.tris[0].data());
     s.removed_volume_mm3 = d.removed[t];
+    // Surfaces are stored once per change: the block offsets identify this frame's surface.
+    s.revision = (static_cast<std::uint64_t>(voff) << 32) ^ static_cast<std::uint64_t>(toff);
   }
 
   for (std::size_t k2 = 0; k2 < kToolSlots; ++k2) {

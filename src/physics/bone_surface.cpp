@@ -117,11 +117,13 @@ double Reshape(BoneState* bone, const Region& region, double max_move,
   mesh::TriMesh& m = bone->surface;
   const double v_before = EnclosedVolume(m);
   std::vector<double> moved_total;
+  bool changed = false;  // any split or kept move: the surface's revision goes up
   for (int round = 0; round < opt.rounds; ++round) {
     const int n_before = static_cast<int>(m.nodes.cols());
     std::vector<std::array<int, 2>> parents;
     SplitLongEdges(&m, region, opt.max_edge_mm, &parents);
     const int n = static_cast<int>(m.nodes.cols());
+    changed = changed || n > n_before;
     // A midpoint already sits where its parents were moved: it inherits their used depth, so no
     // point of the surface moves more than max_move in one call.
     moved_total.resize(n, 0.0);
@@ -169,9 +171,12 @@ double Reshape(BoneState* bone, const Region& region, double max_move,
       }
       if (!reverted) break;
     }
-    for (int i = 0; i < n; ++i)
+    for (int i = 0; i < n; ++i) {
       if (moved[i]) moved_total[i] += (m.nodes.col(i) - old.col(i)).norm();
+      changed = changed || moved[i];
+    }
   }
+  if (changed) ++bone->revision;
   const double removed = v_before - EnclosedVolume(m);
   bone->removed_volume_mm3 += removed;
   return removed;

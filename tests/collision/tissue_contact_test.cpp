@@ -12,6 +12,7 @@
 #include "arthrosim/collision/collision_mesh.h"
 #include "arthrosim/collision/proximity.h"
 #include "arthrosim/core/units.h"
+#include "arthrosim/physics/bone_surface.h"
 #include "arthrosim/sim/step.h"
 
 namespace arthrosim::collision {
@@ -250,6 +251,36 @@ TEST(TissueContact, SheetLoweredOntoABoneTipIsPushedOffIt) {
   EXPECT_GT(end, 0.0);
   EXPECT_LE(deepest, 0.1);
   EXPECT_LT(SheetOnSpike(false).first, -0.15);  // without: the tip stays inside the sheet
+}
+
+// The collision world keeps a bone's tree while the bone's revision is unchanged: a burr cut
+// (which raises it) rebuilds that tree, and the contacts then equal a fresh world's.
+TEST(BoneRevision, CarvedBoneRebuildsItsTreeAndMatchesAFreshWorld) {
+  const Model model = MakeBenchmarkModel();
+  State state = MakeInitialState(model);
+  const CollisionParams params;
+  CollisionWorld world;
+  CollisionOutput out;
+  Detect(model, state, state.tools, params, &world, &out);
+  const int built = world.rebuilds;
+  Detect(model, state, state.tools, params, &world, &out);
+  EXPECT_EQ(world.rebuilds, built);  // nothing changed: refit only
+  BoneState& bone = state.bones[0];
+  const std::uint64_t before = bone.revision;
+  const Vec3 spot = bone.surface.nodes.col(0);
+  const double removed = physics::CarveSphere(&bone, spot, 2.0, 0.5);
+  ASSERT_NE(removed, 0.0);  // the surface changed
+  EXPECT_GT(bone.revision, before);
+  Detect(model, state, state.tools, params, &world, &out);
+  EXPECT_EQ(world.rebuilds, built + 1);  // that bone only
+  CollisionWorld fresh;
+  CollisionOutput again;
+  Detect(model, state, state.tools, params, &fresh, &again);
+  ASSERT_EQ(out.contacts.size(), again.contacts.size());
+  for (std::size_t k = 0; k < out.contacts.size(); ++k) {
+    EXPECT_EQ(out.contacts[k].nodes, again.contacts[k].nodes);
+    EXPECT_EQ(out.contacts[k].offset_mm, again.contacts[k].offset_mm);
+  }
 }
 
 }  // namespace

@@ -123,8 +123,9 @@ struct CollisionWorld {
     std::vector<Vec3> positions;
     TriangleBvh bvh;
     bool built = false;
-    bool closed = false;       ///< every edge shared by exactly two triangles (signed distance)
-    std::int64_t version = 0;  ///< increases at every (re)build
+    bool closed = false;         ///< every edge shared by exactly two triangles (signed distance)
+    std::uint64_t revision = 0;  ///< BoneState::revision of the surface it was built from
+    std::int64_t version = 0;    ///< increases at every (re)build
     /// Local vertices that stick out (a convex corner sharper than the smooth tessellation of a
     /// bone: a spur tip), ascending; they also meet soft triangles (BoneTipTissue).
     std::vector<std::int32_t> salient;

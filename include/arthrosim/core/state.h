@@ -30,6 +30,9 @@ struct SoftBodyState {
 struct BoneState {
   mesh::TriMesh surface;          ///< current closed surface, mm
   double removed_volume_mm3 = 0;  ///< initial enclosed volume minus current, mm^3
+  /// Goes up with every change of `surface` (code that edits it must increment it), so
+  /// observers (collision trees) compare a number instead of the whole surface each step.
+  std::uint64_t revision = 0;
 };
 
 /// Suture thread state.
