@@ -7,6 +7,7 @@
 #include "arthrosim/core/error.h"
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/io/xdmf.h"
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/mesh/mesh_summary.h"
 #include "commands.h"
@@ -61,14 +62,26 @@ void AddInfoCommand(CLI::App* app, int* exit_code) {
   auto path = std::make_shared<std::string>();
   cmd->add_option("file", *path, "Scenario (.yaml), mesh (.msh .vtk .obj .stl) or run (.h5)")
       ->required();
-  cmd->callback([path, exit_code] {
+  auto write_xdmf = std::make_shared<bool>(false);
+  cmd->add_flag("--write-xdmf", *write_xdmf,
+                "Run file: (re)write its ParaView sidecar <run>.xmf from the file (e.g. after a "
+                "killed run)");
+  cmd->callback([path, write_xdmf, exit_code] {
     const std::string ext = std::filesystem::path(*path).extension().string();
+    if (*write_xdmf && ext != ".h5" && ext != ".hdf5") {
+      throw InputError(*path, 0, "--write-xdmf", "needs a run file (.h5)");
+    }
     if (ext == ".yaml" || ext == ".yml") {
       PrintScenario(*path);
     } else if (ext == ".h5" || ext == ".hdf5") {
       std::string text = io::Summarize(*path);
       if (!text.empty() && text.back() != '\n') text += '\n';
       fmt::print("{}", text);
+      if (*write_xdmf) {
+        const std::string xmf = io::XdmfPathFor(*path);
+        io::WriteFileAtomically(xmf, io::XdmfText(io::XdmfRunFromFile(*path)));
+        fmt::print("wrote {}\n", xmf);
+      }
     } else {
       PrintMesh(*path);
     }

@@ -108,6 +108,7 @@ struct RunWriter::Impl {
   BlockSeries constraints, contacts;
 
   std::int64_t frames = 0, flushed = 0;
+  std::int64_t xdmf_frames = 0;     // frames in the sidecar as last written
   std::int64_t written_frames = 0;  // frames whose every dataset is in the file (/time last)
   std::int64_t last_step = std::numeric_limits<std::int64_t>::min();
   std::int64_t last_events_step = std::numeric_limits<std::int64_t>::min();
@@ -503,6 +504,7 @@ void RunWriter::Impl::WriteFrame(const State& s) {
 
 void RunWriter::Impl::WriteXdmf() {
   if (!options.write_xdmf) return;
+  xdmf_frames = frames;
   XdmfRun run;
   run.h5_name = std::filesystem::path(path).filename().string();
   run.times = times;
@@ -629,7 +631,15 @@ void RunWriter::Flush() {
   m.file.Flush();
   m.flushed = m.frames;
   m.last_flush_time = m.times.empty() ? 0.0 : m.times.back();
-  m.WriteXdmf();
+  // The sidecar is rewritten whole (every frame's entry names the datasets' current sizes), so
+  // rewriting it at every flush would cost O(frames^2) over a long session: beyond
+  // `xdmf_every_flush_frames` frames it is rewritten once it lags by the growth fraction, and
+  // always at Close (`arthrosim info RUN.h5 --write-xdmf` rebuilds it from a killed run).
+  const auto lagging = static_cast<double>(m.frames - m.xdmf_frames);
+  if (m.frames <= m.options.xdmf_every_flush_frames ||
+      lagging >= m.options.xdmf_growth * static_cast<double>(m.xdmf_frames)) {
+    m.WriteXdmf();
+  }
 }
 
 void RunWriter::Close() {

@@ -133,6 +133,16 @@ TEST_F(CliTest, KilledRunLeavesAReadableFile) {
                             "p=f['bodies/block/positions'][:n]; sys.exit(0 if n>5 and "
                             "p.shape[0]==n and (f['time'][1:n]>f['time'][:n-1]).all() else 1)\"";
   EXPECT_EQ(std::system(check.c_str()), 0) << check;
+  // Its ParaView sidecar can be rebuilt from the file: one frame entry per stored frame.
+  const Result x = Exec("info " + out + " --write-xdmf");
+  EXPECT_EQ(x.exit_code, 0) << x.output;
+  std::ifstream xmf(P("killed.xmf"));
+  const std::string text((std::istreambuf_iterator<char>(xmf)), {});
+  std::size_t frames = 0;
+  for (std::size_t p = text.find("<Time "); p != std::string::npos; p = text.find("<Time ", p + 1))
+    ++frames;
+  EXPECT_GT(frames, 5u) << x.output;
+  EXPECT_NE(x.output.find("frames: " + std::to_string(frames)), std::string::npos) << x.output;
 }
 
 // A live session over OpenIGTLink (arthrosim serve + the streaming client), recorded with

@@ -60,6 +60,34 @@ TEST(Xdmf, SidecarIsRewrittenAtEveryFlush) {
   w.Close();
 }
 
+// A long session must not rewrite the whole sidecar at every flush (O(frames^2) bytes): past
+// xdmf_every_flush_frames it is rewritten only once it lags by the growth fraction, never lags
+// more, and is complete after Close.
+TEST(Xdmf, SidecarRewritesAreAmortizedOnLongRuns) {
+  const Model model = MakeModel();
+  const std::string path = testing::TestDir("xdmf_long") + "/run.h5";
+  RunWriterOptions options;
+  options.xdmf_every_flush_frames = 10;
+  options.xdmf_growth = 0.25;
+  RunWriter w(path, model, MakeFrame(model, 0), options);
+  int rewrites = 0, last = 1;
+  for (int f = 1; f < 120; ++f) {
+    w.Append(MakeFrame(model, f));
+    w.Flush();
+    const int in_sidecar = Count(Slurp(w.xdmf_path()), "<Time ");
+    const int frames = f + 1;
+    EXPECT_LE(in_sidecar, frames);
+    if (frames <= 10) EXPECT_EQ(in_sidecar, frames);            // short runs: every flush
+    EXPECT_GE(1.25 * in_sidecar + 1, frames) << "frame " << f;  // lags by at most 25 %
+    if (in_sidecar != last) ++rewrites;
+    last = in_sidecar;
+  }
+  EXPECT_LE(rewrites, 10 + 12);  // 10 early ones, then growth by 1.25 up to 120 frames
+  EXPECT_GT(rewrites, 10);
+  w.Close();
+  EXPECT_EQ(Count(Slurp(w.xdmf_path()), "<Time "), 120);
+}
+
 TEST(Xdmf, EmptyMeshesAreLeftOutAndNamesEscaped) {
   XdmfRun run;
   run.h5_name = "a&b.h5";

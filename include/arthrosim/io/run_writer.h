@@ -23,6 +23,11 @@ struct RunWriterOptions {
   /// float64 coordinates shrink only ~13% and zlib costs ~35 ms per 20k-node frame.
   int float_deflate_level = 0;
   bool write_xdmf = true;  ///< keep <path without extension>.xmf next to the file
+  /// The sidecar is rewritten at every flush while the run has at most this many frames; later
+  /// only once the frames written since its last rewrite reach `xdmf_growth` times the frames
+  /// it holds (a whole rewrite each time: O(frames) in total, not O(frames^2)), and at Close.
+  std::int64_t xdmf_every_flush_frames = 1000;
+  double xdmf_growth = 0.25;
   /// Frames are buffered in memory and written as blocks (one extent change and one write per
   /// dataset per block: HDF5's cost is per call). A block is written at every flush, at Close()
   /// and when it holds `block_frames` frames or `block_bytes` bytes. 1 = every frame at once.
