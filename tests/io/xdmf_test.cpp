@@ -77,7 +77,9 @@ TEST(Xdmf, SidecarRewritesAreAmortizedOnLongRuns) {
     const int in_sidecar = Count(Slurp(w.xdmf_path()), "<Time ");
     const int frames = f + 1;
     EXPECT_LE(in_sidecar, frames);
-    if (frames <= 10) EXPECT_EQ(in_sidecar, frames);            // short runs: every flush
+    if (frames <= 10) {
+      EXPECT_EQ(in_sidecar, frames);  // short runs: every flush
+    }
     EXPECT_GE(1.25 * in_sidecar + 1, frames) << "frame " << f;  // lags by at most 25 %
     if (in_sidecar != last) ++rewrites;
     last = in_sidecar;
