@@ -17,14 +17,14 @@ namespace {
 using Term = ThreadTerm;
 using System = ThreadScratch;
 
-Vec3 TermY(const Term& t, const Points& x) {
+[[gnu::always_inline]] inline Vec3 TermY(const Term& t, const Points& x) {
   Vec3 y = Vec3::Zero();
   for (int k = 0; k < t.count; ++k) y += t.w[k] * x.col(t.node[k]);
   return y;
 }
 
 // Energy, gradient wrt y, and the positive semi-definite Hessian wrt y of one term.
-double TermEval(const Term& t, const Vec3& y, Vec3* g, Mat3* h) {
+[[gnu::always_inline]] inline double TermEval(const Term& t, const Vec3& y, Vec3* g, Mat3* h) {
   if (t.kind == Term::Kind::kPlane) {
     const double pen = t.scalar - t.vec.dot(y);
     if (pen <= 0) {
@@ -192,74 +192,119 @@ void SolveWithColumns(System* s) {
   }
 }
 
-// Builds the Newton system at x and solves it into s->step. Stretch terms use the multipliers
+// Builds the part of the Newton system at x that does not depend on the predicted activity of
+// the switching terms (inertia, stretch, bending and point springs) into s->band_base and the
+// spring columns, the true gradient of the energy at x into s->grad (independent of the
+// activity model), and y, gradient and Hessian of every switching term into s->sw_*. The
+// active-set passes of one Newton iteration share it. Stretch terms use the multipliers
 // s->lambda for their transverse (geometric) stiffness: lambda / l (I - u u^T), the Hessian of
 // the Lagrangian of the stretch constraints (SQP), which stays right when a Newton step rotates
 // a segment, where the primal k (1 - L / l) explodes. With allow_negative, compressed segments
 // keep their negative geometric term (exact Hessian; a slack chain then converges
-// quadratically instead of linearly); the caller retries without it if the factorisation finds
-// the matrix indefinite. Contact planes and speed barriers use s->switch_active as their activity.
-// Fills s->grad with the gradient of the energy at x (the true one, independent of the activity
-// model).
-bool BuildAndSolve(System* s, const Points& x, bool allow_negative) {
+// quadratically instead of linearly); the caller rebuilds without it if the factorisation finds
+// the matrix indefinite.
+void BuildBase(System* s, const Points& x, bool allow_negative) {
   const int n = s->num_nodes;
-  ResetBanded(n, &s->band);
-  s->rhs.assign(3 * n, 0.0);
+  BandedBlockMatrix& band = s->band;  // assembled here, then kept in band_base
+  ResetBanded(n, &band);
   s->grad.assign(3 * n, 0.0);
-  s->step.resize(3 * n);
   s->cols_node.clear();
   s->cols_node_w.clear();
   s->cols_dir.clear();
   for (int i = 0; i < n; ++i) {
     if (s->dof[i] < 0) {
-      s->band.diag[i] = Mat3::Identity();
+      band.diag[i] = Mat3::Identity();
       continue;
     }
     const Vec3 dx = x.col(i) - s->x0.col(i);
     const Vec3 g = s->inertia[i] * dx - s->mass[i] * (s->v0.col(i) / s->dt + s->gravity);
     Eigen::Map<Vec3>(s->grad.data() + 3 * i) += g;
-    s->band.diag[i] += s->inertia[i] * Mat3::Identity();
+    band.diag[i] += s->inertia[i] * Mat3::Identity();
   }
-  auto add_grad = [&](const Term& t, const Vec3& g, std::vector<double>* out) {
+  auto add_grad = [&](const Term& t, const Vec3& g) {
     for (int a = 0; a < t.count; ++a)
-      if (s->dof[t.node[a]] >= 0) Eigen::Map<Vec3>(out->data() + 3 * t.node[a]) += t.w[a] * g;
+      if (s->dof[t.node[a]] >= 0) Eigen::Map<Vec3>(s->grad.data() + 3 * t.node[a]) += t.w[a] * g;
   };
   for (std::size_t j = 0; j < s->stretch_terms.size(); ++j) {
     const Term& t = s->stretch_terms[j];
-    const Vec3 e = x.col(t.node[1]) - x.col(t.node[0]);
+    const int n0 = t.node[0], n1 = t.node[1];  // weights -1, +1; n1 = n0 + 1
+    const Vec3 e = x.col(n1) - x.col(n0);
     const double l = std::max(e.norm(), 1e-12);
     const Vec3 u = e / l;
     const double c = l - t.scalar;
     const double k = c < 0 ? t.k_compress : t.k;
     const Vec3 g = k * c * u;
-    add_grad(t, g, &s->grad);
+    add_grad(t, g);
     const double lam = allow_negative ? s->lambda[j] : std::max(0.0, s->lambda[j]);
     const Mat3 uu = u * u.transpose();
-    AddTermHessian(s, t, k * uu + (lam / l) * (Mat3::Identity() - uu));
+    const Mat3 h = k * uu + (lam / l) * (Mat3::Identity() - uu);
+    // The blocks of AddTermHessian for weights (-1, +1), in its order.
+    const bool f0 = s->dof[n0] >= 0, f1 = s->dof[n1] >= 0;
+    if (f0) band.diag[n0] += h;
+    if (f1) {
+      if (f0) band.sub1[n0] -= h;
+      band.diag[n1] += h;
+    }
   }
+  s->sw_y.clear();
+  s->sw_g.clear();
+  s->sw_h.clear();
   Vec3 g;
   Mat3 h;
-  int sw = 0;
   for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
     for (const Term& t : *list) {
       const Vec3 y = TermY(t, x);
       TermEval(t, y, &g, &h);
-      add_grad(t, g, &s->grad);
+      add_grad(t, g);
       if (t.kind == Term::Kind::kSpring) {
         if (!h.isZero(0)) AddTermHessian(s, t, h);
         continue;
       }
+      s->sw_y.push_back(y);
+      s->sw_g.push_back(g);
+      s->sw_h.push_back(h);
+    }
+  }
+  s->base_cols = static_cast<int>(s->cols_dir.size());
+  std::swap(s->band, s->band_base);
+}
+
+// Completes the Newton system from s->band_base with the switching terms (contact planes and
+// speed barriers) at their activity s->switch_active, factors it and solves it into s->step.
+// Returns false if the matrix is not positive definite or the step is not finite.
+bool SolveModel(System* s) {
+  const int n = s->num_nodes;
+  s->band.n = s->band_base.n;  // copies keep their capacity: no allocation
+  s->band.diag = s->band_base.diag;
+  s->band.sub1 = s->band_base.sub1;
+  s->band.sub2 = s->band_base.sub2;
+  s->cols_node.resize(4 * s->base_cols);
+  s->cols_node_w.resize(4 * s->base_cols);
+  s->cols_dir.resize(s->base_cols);
+  s->rhs.assign(3 * n, 0.0);
+  s->step.resize(3 * n);
+  auto add_rhs = [&](const Term& t, const Vec3& g) {
+    for (int a = 0; a < t.count; ++a)
+      if (s->dof[t.node[a]] >= 0) Eigen::Map<Vec3>(s->rhs.data() + 3 * t.node[a]) += t.w[a] * g;
+  };
+  int sw = 0;
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
+    for (const Term& t : *list) {
+      if (t.kind == Term::Kind::kSpring) continue;
       // Switching term: the model uses its predicted activity; rhs collects model - true
       // gradient.
       const int a = sw++;
+      const Vec3& y = s->sw_y[a];
+      const Vec3& g = s->sw_g[a];
+      const Mat3& h = s->sw_h[a];
       if (!s->switch_active[a]) {
-        add_grad(t, -g, &s->rhs);
+        if (!g.isZero(0)) add_rhs(t, -g);  // most candidate pairs are apart: nothing to add
         continue;
       }
       if (t.kind == Term::Kind::kPlane) {
         // Exact piecewise-quadratic model k (offset - n.y), also when y is outside now.
         const double pen = t.scalar - t.vec.dot(y);
-        add_grad(t, -t.k * pen * t.vec - g, &s->rhs);
+        add_rhs(t, -t.k * pen * t.vec - g);
         AddTermHessian(s, t, t.k * t.vec * t.vec.transpose());
       } else if (!h.isZero(0)) {
         AddTermHessian(s, t, h);  // speed barrier active now: its own Hessian
@@ -267,7 +312,7 @@ bool BuildAndSolve(System* s, const Points& x, bool allow_negative) {
         // Speed barrier inactive now, active at the predicted point: the tangent plane of
         // the sphere there, 0.5 k max(0, n.(y - x0) - r)^2.
         const Vec3& nd = s->switch_dir[a];
-        add_grad(t, t.k * (nd.dot(y - t.vec) - t.scalar) * nd, &s->rhs);
+        add_rhs(t, t.k * (nd.dot(y - t.vec) - t.scalar) * nd);
         AddTermHessian(s, t, t.k * nd * nd.transpose());
       }
     }
@@ -281,14 +326,14 @@ bool BuildAndSolve(System* s, const Points& x, bool allow_negative) {
 }
 
 // Predicted activity of every switching term (contact planes, speed barriers) at x + step;
-// returns true if any changed.
-bool UpdateSwitchActivity(System* s, const Points& x) {
+// returns true if any changed. Uses y at x from BuildBase.
+bool UpdateSwitchActivity(System* s) {
   bool changed = false;
   int sw = 0;
   for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
     for (const Term& t : *list) {
       if (t.kind == Term::Kind::kSpring) continue;
-      Vec3 y = TermY(t, x);
+      Vec3 y = s->sw_y[sw];
       for (int k = 0; k < t.count; ++k)
         if (s->dof[t.node[k]] >= 0)
           y += t.w[k] * Eigen::Map<const Vec3>(s->step.data() + 3 * t.node[k]);
@@ -308,13 +353,15 @@ bool UpdateSwitchActivity(System* s, const Points& x) {
   return changed;
 }
 
-void SetSwitchActivityAt(System* s, const Points& x) {
+// Activity of every switching term at the iterate (y from BuildBase).
+void SetSwitchActivityAt(System* s) {
   s->switch_active.clear();
   s->switch_dir.clear();
+  int sw = 0;
   for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms}) {
     for (const Term& t : *list) {
       if (t.kind == Term::Kind::kSpring) continue;
-      const Vec3 y = TermY(t, x);
+      const Vec3& y = s->sw_y[sw++];
       const bool act = t.kind == Term::Kind::kPlane ? t.scalar - t.vec.dot(y) > 0
                                                     : (y - t.vec).norm() > t.scalar;
       s->switch_active.push_back(act ? 1 : 0);
@@ -358,19 +405,21 @@ int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converg
     // Pass 0: activity at x (plain Newton step, a descent direction). Further passes: activity
     // predicted at x + step, kept only if it becomes consistent (then the step minimises the
     // exact piecewise-quadratic contact model, also a descent direction).
-    SetSwitchActivityAt(s, *x);
     bool negative = true;
+    BuildBase(s, *x, true);
+    SetSwitchActivityAt(s);
     auto solve = [&]() {
-      if (negative && BuildAndSolve(s, *x, true)) return true;
+      if (negative && SolveModel(s)) return true;
+      if (negative) BuildBase(s, *x, false);
       negative = false;
-      return BuildAndSolve(s, *x, false);
+      return SolveModel(s);
     };
     if (!solve()) break;
     s->step0 = s->step;
-    bool consistent = !UpdateSwitchActivity(s, *x);
+    bool consistent = !UpdateSwitchActivity(s);
     for (int pass = 1; !consistent && pass < p.max_active_set_passes; ++pass) {
       if (!solve()) break;
-      consistent = !UpdateSwitchActivity(s, *x);
+      consistent = !UpdateSwitchActivity(s);
     }
     if (!consistent) s->step = s->step0;  // s->grad is the true gradient in every pass
     double slope = 0, step_max = 0;
@@ -534,7 +583,9 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
   s->tri_r.resize(m);
   s->tri_u.resize(m);
   int joined = 0;
-  auto w = [&](int node) { return s->dof[node] >= 0 ? 1.0 / s->mass[node] : 0.0; };
+  s->tri_w.resize(s->num_nodes);
+  for (int i = 0; i < s->num_nodes; ++i) s->tri_w[i] = s->dof[i] >= 0 ? 1.0 / s->mass[i] : 0.0;
+  auto w = [&](int node) { return s->tri_w[node]; };
   for (int pass = 0; pass < passes; ++pass) {
     bool any = false;
     for (int j = 0; j < m; ++j) {

@@ -59,6 +59,10 @@ struct ThreadScratch {
   Vec3 gravity = Vec3::Zero();
   // Linear algebra.
   BandedBlockMatrix band;
+  BandedBlockMatrix band_base;   ///< inertia, stretch and springs at the iterate (not factored)
+  int base_cols = 0;             ///< off-band columns of the springs (first in cols_*)
+  std::vector<Vec3> sw_y, sw_g;  ///< switching terms at the iterate: y and true gradient wrt y
+  std::vector<Mat3> sw_h;        ///< switching terms at the iterate: Hessian wrt y
   std::vector<double> min_pivot, grad, rhs, step, step0;
   std::vector<double> cols_node_w;  ///< off-band rank-1 columns: 4 weights each
   std::vector<int> cols_node;       ///< 4 nodes each
@@ -76,6 +80,7 @@ struct ThreadScratch {
   std::vector<Vec3> tri_u;
   std::vector<std::uint8_t> tri_active;
   std::vector<double> tri_target;
+  std::vector<double> tri_w;  ///< inverse mass per node, 0 for nodes that do not move, 1/kg
 };
 
 }  // namespace arthrosim::physics
