@@ -10,6 +10,7 @@ void ResetBanded(int n, BandedBlockMatrix* a) {
   a->diag.resize(n);
   a->sub1.resize(n);
   a->sub2.resize(n);
+  a->chain.reserve(n + 1);
   for (int i = 0; i < n; ++i) {
     a->diag[i].setZero();
     a->sub1[i].setZero();
@@ -113,25 +114,54 @@ inline void SubtractABt(const Mat3& a, const Mat3& b, Mat3* s) {
 
 }  // namespace
 
+namespace {
+
+// Splits the rows into runs that do not couple (zero blocks between them) into a->chain; returns
+// the longest run.
+int FindChains(BandedBlockMatrix* a) {
+  const int n = a->n;
+  a->chain.clear();
+  int longest = 0;
+  for (int i = 0; i < n; ++i) {
+    const bool start = i == 0 || (a->sub1[i - 1].isZero(0) && a->sub2[i - 1].isZero(0) &&
+                                  (i < 2 || a->sub2[i - 2].isZero(0)));
+    if (!start) continue;
+    if (i > 0) longest = std::max(longest, i - a->chain.back());
+    a->chain.push_back(i);
+  }
+  if (n > 0) longest = std::max(longest, n - a->chain.back());
+  a->chain.push_back(n);
+  return longest;
+}
+
+}  // namespace
+
 bool FactorBanded(const std::vector<double>& min_pivot, BandedBlockMatrix* a) {
   // Block Cholesky A = L L^T: the same arithmetic as scalar Cholesky, so it stays accurate on
   // a chain whose axial stiffness exceeds its inertia by 1e10 (an explicit D^-1 would not).
-  // The Schur complements in diag keep only their lower triangle up to date.
-  const int n = a->n;
-  for (int i = 0; i < n; ++i) {
-    Mat3 lii;
-    const double piv = Cholesky3(a->diag[i], &lii);  // diag[i] holds the Schur complement
-    if (!(piv * piv > min_pivot[i])) return false;
-    a->diag[i] = lii;
-    Mat3& b1 = a->sub1[i];
-    Mat3& b2 = a->sub2[i];
-    RightSolveLT(lii, Mat3(b1), &b1);
-    RightSolveLT(lii, Mat3(b2), &b2);
-    if (i + 1 < n) {
-      SubtractLowerBBt(b1, &a->diag[i + 1]);
-      if (i + 2 < n) {
-        SubtractLowerBBt(b2, &a->diag[i + 2]);
-        SubtractABt(b2, b1, &a->sub1[i + 1]);
+  // The Schur complements in diag keep only their lower triangle up to date. Independent runs
+  // (threads) go in lock step: a row waits on square roots and divisions of the one before.
+  const int longest = FindChains(a);
+  const int nc = static_cast<int>(a->chain.size()) - 1;
+  for (int q = 0; q < longest; ++q) {
+    for (int k = 0; k < nc; ++k) {
+      const int i = a->chain[k] + q;
+      const int end = a->chain[k + 1];
+      if (i >= end) continue;
+      Mat3 lii;
+      const double piv = Cholesky3(a->diag[i], &lii);  // diag[i] holds the Schur complement
+      if (!(piv * piv > min_pivot[i])) return false;
+      a->diag[i] = lii;
+      Mat3& b1 = a->sub1[i];
+      Mat3& b2 = a->sub2[i];
+      RightSolveLT(lii, Mat3(b1), &b1);
+      RightSolveLT(lii, Mat3(b2), &b2);
+      if (i + 1 < end) {
+        SubtractLowerBBt(b1, &a->diag[i + 1]);
+        if (i + 2 < end) {
+          SubtractLowerBBt(b2, &a->diag[i + 2]);
+          SubtractABt(b2, b1, &a->sub1[i + 1]);
+        }
       }
     }
   }
@@ -139,20 +169,31 @@ bool FactorBanded(const std::vector<double>& min_pivot, BandedBlockMatrix* a) {
 }
 
 void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x) {
-  const int n = a.n;
   using CMap = Eigen::Map<const Vec3>;
   using Map = Eigen::Map<Vec3>;
-  for (int i = 0; i < n; ++i) {  // L y = b
-    Vec3 y = CMap(b + 3 * i);
-    if (i >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
-    if (i >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
-    Map(x + 3 * i) = Forward3(a.diag[i], y);
+  const int nc = static_cast<int>(a.chain.size()) - 1;
+  int longest = 0;
+  for (int k = 0; k < nc; ++k) longest = std::max(longest, a.chain[k + 1] - a.chain[k]);
+  for (int q = 0; q < longest; ++q) {  // L y = b
+    for (int k = 0; k < nc; ++k) {
+      const int i = a.chain[k] + q;
+      if (i >= a.chain[k + 1]) continue;
+      Vec3 y = CMap(b + 3 * i);
+      if (q >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
+      if (q >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
+      Map(x + 3 * i) = Forward3(a.diag[i], y);
+    }
   }
-  for (int i = n - 1; i >= 0; --i) {  // L^T x = y
-    Vec3 z = Map(x + 3 * i);
-    if (i + 1 < n) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
-    if (i + 2 < n) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
-    Map(x + 3 * i) = Backward3(a.diag[i], z);
+  for (int q = longest - 1; q >= 0; --q) {  // L^T x = y
+    for (int k = 0; k < nc; ++k) {
+      const int i = a.chain[k] + q;
+      const int end = a.chain[k + 1];
+      if (i >= end) continue;
+      Vec3 z = Map(x + 3 * i);
+      if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
+      if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
+      Map(x + 3 * i) = Backward3(a.diag[i], z);
+    }
   }
 }
 

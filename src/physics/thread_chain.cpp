@@ -586,6 +586,17 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
   s->tri_w.resize(s->num_nodes);
   for (int i = 0; i < s->num_nodes; ++i) s->tri_w[i] = s->dof[i] >= 0 ? 1.0 / s->mass[i] : 0.0;
   auto w = [&](int node) { return s->tri_w[node]; };
+  // Chains: maximal runs of stretch terms that share nodes (a thread, or its pieces once cut).
+  s->tri_chain.clear();
+  int max_chain = 0;
+  for (int j = 0; j < m; ++j) {
+    if (j == 0 || s->stretch_terms[j].node[0] != s->stretch_terms[j - 1].node[1]) {
+      if (j > 0) max_chain = std::max(max_chain, j - s->tri_chain.back());
+      s->tri_chain.push_back(j);
+    }
+  }
+  if (m > 0) max_chain = std::max(max_chain, m - s->tri_chain.back());
+  s->tri_chain.push_back(m);
   for (int pass = 0; pass < passes; ++pass) {
     bool any = false;
     for (int j = 0; j < m; ++j) {
@@ -615,19 +626,31 @@ int ProjectLengths(System* s, bool limit_only, int passes, Points* x) {
         s->tri_c[j] = -w(t.node[1]) * s->tri_u[j].dot(s->tri_u[j + 1]);
       s->tri_a[j] = j > 0 ? s->tri_c[j - 1] : 0.0;
     }
-    for (int j = 1; j < m; ++j) {  // Thomas algorithm (positive definite, no pivoting)
-      const double f = s->tri_a[j] / s->tri_b[j - 1];
-      const double diag = s->tri_b[j];
-      s->tri_b[j] -= f * s->tri_c[j - 1];
-      // A redundant active set (a straight chain fixed at both ends has more length rows than
-      // axial freedoms: J W J^T is singular) leaves a zero pivot, and 0/0 would poison every
-      // thread; a floor keeps it positive (the null direction moves no node: J^T n = 0).
-      if (!(s->tri_b[j] > 1e-12 * diag)) s->tri_b[j] = 1e-12 * diag;
-      s->tri_r[j] -= f * s->tri_r[j - 1];
+    // Thomas algorithm (positive definite, no pivoting) on every chain, the chains in lock
+    // step: each row waits for a division on the previous one, so one chain alone leaves the
+    // divider idle most of the time. (Rows of different chains never couple: c = 0 there.)
+    const int nc = static_cast<int>(s->tri_chain.size()) - 1;
+    for (int q = 1; q < max_chain; ++q) {
+      for (int k = 0; k < nc; ++k) {
+        const int j = s->tri_chain[k] + q;
+        if (j >= s->tri_chain[k + 1]) continue;
+        const double f = s->tri_a[j] / s->tri_b[j - 1];
+        const double diag = s->tri_b[j];
+        s->tri_b[j] -= f * s->tri_c[j - 1];
+        // A redundant active set (a straight chain fixed at both ends has more length rows
+        // than axial freedoms: J W J^T is singular) leaves a zero pivot, and 0/0 would poison
+        // the thread; a floor keeps it positive (the null direction moves no node: J^T n = 0).
+        if (!(s->tri_b[j] > 1e-12 * diag)) s->tri_b[j] = 1e-12 * diag;
+        s->tri_r[j] -= f * s->tri_r[j - 1];
+      }
     }
-    for (int j = m - 1; j >= 0; --j) {
-      if (j + 1 < m) s->tri_r[j] -= s->tri_c[j] * s->tri_r[j + 1];
-      s->tri_r[j] /= s->tri_b[j];
+    for (int q = max_chain - 1; q >= 0; --q) {
+      for (int k = 0; k < nc; ++k) {
+        const int j = s->tri_chain[k] + q;
+        if (j >= s->tri_chain[k + 1]) continue;
+        if (j + 1 < s->tri_chain[k + 1]) s->tri_r[j] -= s->tri_c[j] * s->tri_r[j + 1];
+        s->tri_r[j] /= s->tri_b[j];
+      }
     }
     for (int j = 0; j < m; ++j) {
       if (s->tri_r[j] == 0) continue;
@@ -723,6 +746,7 @@ void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspac
   s.cols_v.reserve(16 * 3 * nodes);
   s.cap_s.reserve(16 * 16);
   s.cap_y.reserve(16);
+  s.tri_chain.reserve(nodes + 1);
 }
 
 void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,

@@ -15,6 +15,9 @@ struct BandedBlockMatrix {
   std::vector<Mat3> diag;  ///< A(i, i); after Factor: L(i, i) below, 1 / pivots above
   std::vector<Mat3> sub1;  ///< A(i + 1, i); after Factor: L(i + 1, i)
   std::vector<Mat3> sub2;  ///< A(i + 2, i); after Factor: L(i + 2, i)
+  /// After Factor: first row of each run of rows that couples to no earlier row (a thread,
+  /// fixed nodes alone), then n. The runs are factored and solved in lock step.
+  std::vector<int> chain;
 };
 
 /// Sets the size to n blocks and zeroes all blocks (no allocation when n is unchanged or smaller

@@ -80,7 +80,8 @@ struct ThreadScratch {
   std::vector<Vec3> tri_u;
   std::vector<std::uint8_t> tri_active;
   std::vector<double> tri_target;
-  std::vector<double> tri_w;  ///< inverse mass per node, 0 for nodes that do not move, 1/kg
+  std::vector<int> tri_chain;  ///< first stretch term of each chain, then the term count
+  std::vector<double> tri_w;   ///< inverse mass per node, 0 for nodes that do not move, 1/kg
 };
 
 }  // namespace arthrosim::physics
