@@ -109,10 +109,13 @@ void AddTermHessian(System* s, const Term& t, const Mat3& h) {
       for (int b = 0; b < t.count; ++b) {
         if (s->dof[t.node[b]] < 0 || t.node[a] < t.node[b]) continue;
         const Mat3 hab = (t.w[a] * t.w[b]) * h;
-        if (t.node[a] > t.node[b])
-          AddBandedBlock(t.node[a], t.node[b], hab, &s->band);
+        const int row = t.node[a], col = t.node[b];  // row >= col: AddBandedBlock inlined
+        if (row == col)
+          s->band.diag[row] += hab;
+        else if (row == col + 1)
+          s->band.sub1[col] += hab;
         else
-          s->band.diag[t.node[a]] += hab;
+          s->band.sub2[col] += hab;
       }
     }
     return;
