@@ -11,6 +11,15 @@
 #include "arthrosim/collision/contact_generation.h"
 #include "arthrosim/core/units.h"
 
+// Under AddressSanitizer the FCL library keeps allocating through the sanitizer's operator new
+// while this binary's delete would free: counting is a Release-build check.
+#if defined(__SANITIZE_ADDRESS__)
+#define ARTHROSIM_COUNTING_NEW 0
+namespace {
+long g_allocations = 0;
+}  // namespace
+#else
+#define ARTHROSIM_COUNTING_NEW 1
 namespace {
 long g_allocations = 0;  // counted by the replacements below (single-threaded test)
 
@@ -39,11 +48,13 @@ void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+#endif
 
 namespace arthrosim::collision {
 namespace {
 
 TEST(CollisionAllocation, SteadyStateDetectDoesNotAllocate) {
+  if (!ARTHROSIM_COUNTING_NEW) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const Model model = MakeBenchmarkModel();
   State state = MakeInitialState(model);
   std::vector<Points> rest;

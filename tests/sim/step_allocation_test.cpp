@@ -12,6 +12,15 @@
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
 
+// Under AddressSanitizer the FCL library keeps allocating through the sanitizer's operator new
+// while this binary's delete would free: counting is a Release-build check.
+#if defined(__SANITIZE_ADDRESS__)
+#define ARTHROSIM_COUNTING_NEW 0
+namespace {
+long g_allocations = 0;
+}  // namespace
+#else
+#define ARTHROSIM_COUNTING_NEW 1
 namespace {
 long g_allocations = 0;  // counted by the replacements below (single-threaded test)
 
@@ -40,6 +49,7 @@ void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+#endif
 
 namespace arthrosim::sim {
 namespace {
@@ -48,6 +58,7 @@ namespace {
 // with a period of 40 steps while the two threads settle on the tissue: after two periods every
 // work list has reached its size, and the third period must not allocate.
 TEST(StepAllocation, PeriodicToolWorkDoesNotAllocate) {
+  if (!ARTHROSIM_COUNTING_NEW) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const Model model =
       io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/bench_full.yaml");
   const int tendon = model.FindSoftBody("supraspinatus_tendon");
