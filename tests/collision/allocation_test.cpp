@@ -7,54 +7,17 @@
 #include <cstdlib>
 #include <new>
 
+#include "../support/counting_new.h"
 #include "arthrosim/collision/bench_scene.h"
 #include "arthrosim/collision/contact_generation.h"
 #include "arthrosim/core/units.h"
-
-// Under AddressSanitizer the FCL library keeps allocating through the sanitizer's operator new
-// while this binary's delete would free: counting is a Release-build check.
-#if defined(__SANITIZE_ADDRESS__)
-#define ARTHROSIM_COUNTING_NEW 0
-namespace {
-long g_allocations = 0;
-}  // namespace
-#else
-#define ARTHROSIM_COUNTING_NEW 1
-namespace {
-long g_allocations = 0;  // counted by the replacements below (single-threaded test)
-
-void* Allocate(std::size_t n, std::size_t align) {
-  ++g_allocations;
-  const std::size_t size = (std::max<std::size_t>(n, 1) + align - 1) / align * align;
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, size) : std::malloc(size);
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new[](std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-#endif
 
 namespace arthrosim::collision {
 namespace {
 
 TEST(CollisionAllocation, SteadyStateDetectDoesNotAllocate) {
-  if (!ARTHROSIM_COUNTING_NEW) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const Model model = MakeBenchmarkModel();
   State state = MakeInitialState(model);
   std::vector<Points> rest;
@@ -82,10 +45,10 @@ TEST(CollisionAllocation, SteadyStateDetectDoesNotAllocate) {
             rest[b](2, i) + 0.3 * std::sin(0.2 * rest[b](0, i) + 0.3 * step);
       }
     }
-    const long before = g_allocations;
+    const long before = test_support::AllocationCount();
     Detect(model, state, step == 0 ? state.tools : prev, params, &world, &out);
     if (step >= 20) {
-      steady += g_allocations - before;
+      steady += test_support::AllocationCount() - before;
       contacts += out.contacts.size();
     }
   }

@@ -7,38 +7,10 @@
 #include <cstdlib>
 #include <new>
 
+#include "../support/counting_new.h"
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/run_writer.h"
 #include "run_fixture.h"
-
-namespace {
-long g_allocations = 0;  // counted by the replacements below (single-threaded test)
-
-void* Allocate(std::size_t n, std::size_t align) {
-  ++g_allocations;
-  const std::size_t size = (std::max<std::size_t>(n, 1) + align - 1) / align * align;
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, size) : std::malloc(size);
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new[](std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace arthrosim::io {
 namespace {
@@ -47,6 +19,8 @@ using testing::MakeFrame;
 using testing::MakeModel;
 
 TEST(RunAllocation, SteadyStateAppendDoesNotAllocate) {
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   Model model = MakeModel();
   model.options.flush_interval_s = 1e9;  // flushes rewrite the .xmf text: not a per-frame cost
   const std::string path = testing::TestDir("allocation") + "/run.h5";
@@ -61,14 +35,14 @@ TEST(RunAllocation, SteadyStateAppendDoesNotAllocate) {
 
   RunWriter w(path, model, MakeFrame(model, 0), options);
   for (int f = 1; f < kFirst; ++f) w.Append(MakeFrame(model, f));  // growth, events, 2 blocks
-  const long before = g_allocations;
+  const long before = test_support::AllocationCount();
   for (const State& s : frames) w.Append(s);
-  const long allocations = g_allocations - before;
+  const long allocations = test_support::AllocationCount() - before;
   EXPECT_EQ(allocations, 0) << "over " << frames.size() << " appends";
   // The counter does count: building one frame allocates.
-  const long probe = g_allocations;
+  const long probe = test_support::AllocationCount();
   (void)MakeFrame(model, 1);
-  EXPECT_GT(g_allocations, probe);
+  EXPECT_GT(test_support::AllocationCount(), probe);
 
   w.Close();
   const RunReader r(path);

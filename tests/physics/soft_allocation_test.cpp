@@ -9,42 +9,16 @@
 #include <new>
 #include <string>
 
+#include "../support/counting_new.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/physics/soft_system.h"
-
-namespace {
-long g_allocations = 0;  // counted by the replacements below (single-threaded test)
-
-void* Allocate(std::size_t n, std::size_t align) {
-  ++g_allocations;
-  const std::size_t size = (std::max<std::size_t>(n, 1) + align - 1) / align * align;
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, size) : std::malloc(size);
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new[](std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace arthrosim::physics {
 namespace {
 
 TEST(SoftAllocation, SteadyStateStepsIncludingRefactorsDoNotAllocate) {
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const Model model =
       io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/bench_full.yaml");
   State state = MakeInitialState(model);
@@ -65,10 +39,10 @@ TEST(SoftAllocation, SteadyStateStepsIncludingRefactorsDoNotAllocate) {
   for (int k = 0; k < 80; ++k) {
     const double phase = 2.0 * 3.14159265358979323846 * k * model.options.dt_s / 0.4;
     springs[0].anchor_mm = centre + 4.0 * Vec3(0, std::sin(phase), 1.0 - std::cos(phase));
-    const long before = g_allocations;
+    const long before = test_support::AllocationCount();
     const SoftStepStats st = sys.Step(model, nullptr, &springs, &state);
     if (k >= 20) {
-      steady += g_allocations - before;
+      steady += test_support::AllocationCount() - before;
       refactors += st.refactored ? 1 : 0;
       iterations += st.cg_iterations;
     }

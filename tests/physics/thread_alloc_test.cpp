@@ -7,21 +7,10 @@
 #include <new>
 #include <vector>
 
+#include "../support/counting_new.h"
 #include "arthrosim/core/units.h"
 #include "arthrosim/physics/thread_chain.h"
 #include "thread_test_util.h"
-
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace arthrosim::physics {
 namespace {
@@ -30,9 +19,11 @@ using testing::PolylineThread;
 using testing::RestState;
 
 TEST(ThreadAllocation, CounterSeesAllocations) {
-  const long before = g_allocations.load();
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  const long before = test_support::AllocationCount();
   std::vector<double>* v = new std::vector<double>(100, 1.0);
-  const long after = g_allocations.load();
+  const long after = test_support::AllocationCount();
   delete v;
   EXPECT_GE(after - before, 2);  // the vector object and its buffer
 }
@@ -40,6 +31,8 @@ TEST(ThreadAllocation, CounterSeesAllocations) {
 // Two crossing threads falling onto a floor (point contacts), one pulled by a spring, with
 // self- and thread-thread contacts: every stage of the step runs.
 TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   ThreadModel a = PolylineThread({{0, 0, 1}, {30, 0, 1}}, 40);
   a.fixed_nodes = {0};
   a.bend_stiffness_n_mm2 = 0.5;
@@ -75,9 +68,9 @@ TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
   int pairs = 0, iterations = 0;
   for (int step = 0; step < 60; ++step) {
     springs[0].anchor_mm = Vec3(15 + 5 * std::sin(0.1 * step), 15, 3);
-    const long before = g_allocations.load();
+    const long before = test_support::AllocationCount();
     StepThreads(models, 0.02, gravity, &floor, &springs, &states, &ws);
-    if (step > 0) allocations += g_allocations.load() - before;
+    if (step > 0) allocations += test_support::AllocationCount() - before;
     pairs = std::max(pairs, ws.last.contact_pairs);
     iterations += ws.last.newton_iterations;
   }

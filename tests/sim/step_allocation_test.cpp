@@ -9,47 +9,9 @@
 #include <new>
 #include <string>
 
+#include "../support/counting_new.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
-
-// Under AddressSanitizer the FCL library keeps allocating through the sanitizer's operator new
-// while this binary's delete would free: counting is a Release-build check.
-#if defined(__SANITIZE_ADDRESS__)
-#define ARTHROSIM_COUNTING_NEW 0
-namespace {
-long g_allocations = 0;
-}  // namespace
-#else
-#define ARTHROSIM_COUNTING_NEW 1
-namespace {
-long g_allocations = 0;  // counted by the replacements below (single-threaded test)
-
-void* Allocate(std::size_t n, std::size_t align) {
-  ++g_allocations;
-  const std::size_t size = (std::max<std::size_t>(n, 1) + align - 1) / align * align;
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, size) : std::malloc(size);
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new[](std::size_t n) { return Allocate(n, alignof(std::max_align_t)); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  return Allocate(n, static_cast<std::size_t>(a));
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-#endif
 
 namespace arthrosim::sim {
 namespace {
@@ -58,7 +20,8 @@ namespace {
 // with a period of 40 steps while the two threads settle on the tissue: after two periods every
 // work list has reached its size, and the third period must not allocate.
 TEST(StepAllocation, PeriodicToolWorkDoesNotAllocate) {
-  if (!ARTHROSIM_COUNTING_NEW) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const Model model =
       io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/bench_full.yaml");
   const int tendon = model.FindSoftBody("supraspinatus_tendon");
@@ -87,9 +50,9 @@ TEST(StepAllocation, PeriodicToolWorkDoesNotAllocate) {
       t.pose.position_mm = Vec3(x, mid.y() + (slot == 0 ? w : -w), hi.z() - 0.5);
       t.pose.orientation = Quat(Eigen::AngleAxisd(3.14159265358979323846, Vec3::UnitX()));
     }
-    const long before = g_allocations;
+    const long before = test_support::AllocationCount();
     Step(model, frame, &state, &ws);
-    const long n = g_allocations - before;
+    const long n = test_support::AllocationCount() - before;
     if (k < 80 || !state.events.empty()) continue;  // two periods to size; events carry text
     ++counted;
     allocations += n;
