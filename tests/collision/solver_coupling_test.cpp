@@ -13,6 +13,7 @@
 #include "arthrosim/core/units.h"
 #include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/step.h"
+#include "signed_distance.h"
 
 namespace arthrosim::collision {
 namespace {
@@ -44,27 +45,7 @@ SoftBodyModel Block(const Vec3& lo, const Vec3& hi, int nx, int ny, int nz, cons
   return b;
 }
 
-// Signed distance (> 0 outside) of p from the boundary of the alive tets, by brute force with
-// the pseudo-normal of the equally near triangles.
-double SignedDistance(const SoftBodyState& b, const Vec3& p) {
-  double best = 1e300;
-  Vec3 normal = Vec3::Zero(), delta = Vec3::Zero();
-  const std::vector<mesh::Tri> tris = BoundaryTriangles(b.tets, b.tet_alive);
-  for (const mesh::Tri& t : tris) {
-    const Vec3 a = b.x.col(t[0]), c1 = b.x.col(t[1]), c2 = b.x.col(t[2]);
-    const ClosestPair c = PointTriangle(p, a, c1, c2);
-    const Vec3 n = (c1 - a).cross(c2 - a).normalized();
-    if (c.dist2 < best * (1 - 1e-9)) {
-      best = c.dist2;
-      normal = n;
-      delta = p - c.pb;
-    } else if (c.dist2 <= best * (1 + 1e-9)) {
-      normal += n;
-    }
-  }
-  const double d = std::sqrt(best);
-  return delta.dot(normal) >= 0 ? d : -d;
-}
+using testing::SignedDistance;
 
 // ---- Indentation: flat punch on a thin block, F = E A delta / h -----------------------------
 

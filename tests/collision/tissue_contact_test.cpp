@@ -14,6 +14,7 @@
 #include "arthrosim/core/units.h"
 #include "arthrosim/physics/bone_surface.h"
 #include "arthrosim/sim/step.h"
+#include "signed_distance.h"
 
 namespace arthrosim::collision {
 namespace {
@@ -47,26 +48,7 @@ SoftBodyModel Block(const char* name, const Vec3& lo, const Vec3& hi, int nx, in
   return b;
 }
 
-// Signed distance (> 0 outside) of p from the boundary of the alive tets, by brute force with
-// the pseudo-normal of the equally near triangles.
-double SignedDistance(const SoftBodyState& b, const Vec3& p) {
-  double best = 1e300;
-  Vec3 normal = Vec3::Zero(), delta = Vec3::Zero();
-  for (const mesh::Tri& t : BoundaryTriangles(b.tets, b.tet_alive)) {
-    const Vec3 a = b.x.col(t[0]), c1 = b.x.col(t[1]), c2 = b.x.col(t[2]);
-    const ClosestPair c = PointTriangle(p, a, c1, c2);
-    const Vec3 n = (c1 - a).cross(c2 - a).normalized();
-    if (c.dist2 < best * (1 - 1e-9)) {
-      best = c.dist2;
-      normal = n;
-      delta = p - c.pb;
-    } else if (c.dist2 <= best * (1 + 1e-9)) {
-      normal += n;
-    }
-  }
-  const double d = std::sqrt(best);
-  return delta.dot(normal) >= 0 ? d : -d;
-}
+using testing::SignedDistance;
 
 bool AllFinite(const State& s) {
   for (const SoftBodyState& b : s.soft_bodies) {
