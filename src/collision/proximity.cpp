@@ -43,6 +43,14 @@ Simplex TriangleSimplex(const Vec3& a, const Vec3& b, const Vec3& c) {
   return Simplex{3, {a, b, c}};
 }
 
+// The point with weights (w0, w1) on segment (a, b): Simplex::At's operations, without building
+// simplices (same bits).
+Vec3 SegmentAt(double w0, double w1, const Vec3& a, const Vec3& b) {
+  Vec3 p = w0 * a;
+  p += w1 * b;
+  return p;
+}
+
 ClosestPair PointSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
   const double len2 = ab.dot(ab);
@@ -50,7 +58,11 @@ ClosestPair PointSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
   ClosestPair r;
   r.wa = {1, 0, 0};
   r.wb = {1.0 - t, t, 0};
-  return Finish(r, PointSimplex(p), SegmentSimplex(a, b));
+  // As Finish(r, point, segment).
+  r.pa = 1.0 * p;
+  r.pb = SegmentAt(r.wb[0], r.wb[1], a, b);
+  r.dist2 = (r.pa - r.pb).squaredNorm();
+  return r;
 }
 
 ClosestPair PointTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -122,7 +134,11 @@ ClosestPair SegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const
   ClosestPair r;
   r.wa = {1 - s, s, 0};
   r.wb = {1 - t, t, 0};
-  return Finish(r, SegmentSimplex(p0, p1), SegmentSimplex(q0, q1));
+  // As Finish(r, segment, segment).
+  r.pa = SegmentAt(r.wa[0], r.wa[1], p0, p1);
+  r.pb = SegmentAt(r.wb[0], r.wb[1], q0, q1);
+  r.dist2 = (r.pa - r.pb).squaredNorm();
+  return r;
 }
 
 namespace {
@@ -156,15 +172,117 @@ bool Pierces(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const
 
 }  // namespace
 
-ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
-                            const Vec3& c) {
-  const Simplex seg = SegmentSimplex(p0, p1);
-  const Simplex tri = TriangleSimplex(a, b, c);
-  {
-    ClosestPair r;
-    if (Pierces(p0, p1, a, b, c, &r)) return r;
+namespace {
+
+// Cheap lower bounds on distances to a triangle (a, b, c) and to its edges, from its plane and
+// its three side planes (through edge k = (v_k, v_k+1), normal to the triangle). They only ever
+// skip an exact test whose result could not be taken (it would be farther than the best so
+// far), so results are those of the full evaluation, bit for bit. Squared forms: no roots.
+struct TriangleFrame {
+  Vec3 a, ab, ac, n;  // n = ab x ac, not normalised
+  double n2 = 0, d00 = 0, d01 = 0, d11 = 0, inv_denom = 0;
+  std::array<double, 3> height2{0, 0, 0};  // squared height over edge k of its opposite vertex
+  bool usable = false;                     // well shaped: the bounds are accurate
+  double slack = 0;  // rounding allowance of the bounds, mm (far above their error)
+};
+
+TriangleFrame MakeFrame(const Vec3& a, const Vec3& b, const Vec3& c) {
+  TriangleFrame f;
+  f.a = a;
+  f.ab = b - a;
+  f.ac = c - a;
+  f.n = f.ab.cross(f.ac);
+  f.n2 = f.n.squaredNorm();
+  const double l2[3] = {f.ab.squaredNorm(), (c - b).squaredNorm(), f.ac.squaredNorm()};
+  const double max2 = std::max({l2[0], l2[1], l2[2]});
+  // Smallest height >= 1e-4 of the longest edge: barycentric coordinates then lose at most ~4
+  // digits, ~1e-10 mm at our coordinates, far below `slack`.
+  if (!(f.n2 > 1e-8 * max2 * max2)) return f;
+  f.d00 = l2[0];
+  f.d01 = f.ab.dot(f.ac);
+  f.d11 = l2[2];
+  f.inv_denom = 1.0 / (f.d00 * f.d11 - f.d01 * f.d01);
+  for (int k = 0; k < 3; ++k) f.height2[k] = f.n2 / l2[k];
+  f.slack = 1e-9 * (1.0 + a.cwiseAbs().maxCoeff() + max2);
+  f.usable = std::isfinite(f.inv_denom) && std::isfinite(f.slack);
+  return f;
+}
+
+// Bounds of segment (p0, p1) against a usable frame: plane2 is its squared distance to the
+// triangle's plane (0 if it crosses it); side_min/max[k] span the barycentric coordinate of the
+// vertex opposite edge k over the segment's projection (affine along it, so the ends bound it):
+// times that vertex's height, the signed distance from edge k's side plane (> 0 inside).
+struct SegmentBounds {
+  double plane2 = 0;
+  std::array<double, 3> side_min{0, 0, 0}, side_max{0, 0, 0};
+  const TriangleFrame* f = nullptr;
+
+  /// Squared lower bound of the distance from the segment to edge k (mm^2): every point is
+  /// that far off the plane and, if side_min > 0, that far inside the edge's side plane.
+  double Edge2(int k) const {
+    return side_min[k] > 0 ? plane2 + side_min[k] * side_min[k] * f->height2[k] : plane2;
   }
+  /// Squared lower bound of the distance from the segment to the triangle (mm^2), which lies in
+  /// the plane on the inner side of every side plane.
+  double Triangle2() const {
+    double out2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (side_max[k] < 0) out2 = std::max(out2, side_max[k] * side_max[k] * f->height2[k]);
+    }
+    return plane2 + out2;
+  }
+};
+
+// True if a squared lower bound exceeds dist (mm) by more than the frame's rounding slack.
+bool Beyond(const TriangleFrame& f, double lower2, double dist) {
+  const double lim = dist + f.slack;
+  return lower2 > lim * lim;
+}
+
+// Bounds of the convex hull of n points (a segment's or a triangle's vertices) against a usable
+// frame (the same quantities are affine, so the vertices bound them).
+SegmentBounds BoundPoints(const TriangleFrame& f, const Vec3* const* pts, int n) {
+  SegmentBounds b;
+  b.f = &f;
+  double hmin = 0, hmax = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 ap = *pts[i] - f.a;
+    const double h = f.n.dot(ap);
+    const double d20 = ap.dot(f.ab), d21 = ap.dot(f.ac);
+    const double v = (f.d11 * d20 - f.d01 * d21) * f.inv_denom;  // weight of b
+    const double w = (f.d00 * d21 - f.d01 * d20) * f.inv_denom;  // weight of c
+    // The vertex opposite edge 0 (a, b) is c, opposite edge 1 (b, c) is a, opposite 2 is b.
+    const double side[3] = {w, 1.0 - v - w, v};
+    for (int k = 0; k < 3; ++k) {
+      b.side_min[k] = i == 0 ? side[k] : std::min(b.side_min[k], side[k]);
+      b.side_max[k] = i == 0 ? side[k] : std::max(b.side_max[k], side[k]);
+    }
+    hmin = i == 0 ? h : std::min(hmin, h);
+    hmax = i == 0 ? h : std::max(hmax, h);
+  }
+  if (hmin > 0) b.plane2 = hmin * hmin / f.n2;
+  if (hmax < 0) b.plane2 = hmax * hmax / f.n2;
+  return b;
+}
+
+SegmentBounds BoundSegment(const TriangleFrame& f, const Vec3& p0, const Vec3& p1) {
+  const Vec3* pts[2] = {&p0, &p1};
+  return BoundPoints(f, pts, 2);
+}
+
+// SegmentTriangle, or false without the exact test when `prune_dist` >= 0 and the triangle is
+// provably farther than it from the segment (mm).
+bool SegmentTriangleUnless(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
+                           const Vec3& c, double prune_dist, ClosestPair* out) {
+  const TriangleFrame f = MakeFrame(a, b, c);
+  SegmentBounds bounds;
+  if (f.usable) {
+    bounds = BoundSegment(f, p0, p1);
+    if (prune_dist >= 0 && Beyond(f, bounds.Triangle2(), prune_dist)) return false;
+  }
+  if (Pierces(p0, p1, a, b, c, out)) return true;
   // Otherwise the minimum is at an endpoint against the face or at the segment against an edge.
+  const Vec3* tri[3] = {&a, &b, &c};
   ClosestPair best = PointTriangle(p0, a, b, c);
   {
     ClosestPair q = PointTriangle(p1, a, b, c);
@@ -174,8 +292,11 @@ ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const
     }
   }
   const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
-  for (const auto& e : edges) {
-    const ClosestPair q = SegmentSegment(p0, p1, tri.v[e[0]], tri.v[e[1]]);
+  for (int k = 0; k < 3; ++k) {
+    // An edge no nearer than the best so far cannot replace it (strict improvement).
+    if (f.usable && Beyond(f, bounds.Edge2(k), std::sqrt(best.dist2))) continue;
+    const auto& e = edges[k];
+    const ClosestPair q = SegmentSegment(p0, p1, *tri[e[0]], *tri[e[1]]);
     if (q.dist2 < best.dist2) {
       best = q;
       best.wb = {0, 0, 0};
@@ -183,14 +304,57 @@ ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const
       best.wb[e[1]] += q.wb[1];
     }
   }
-  return Finish(best, seg, tri);
+  // As Finish(best, segment, triangle), without building the simplices (same bits).
+  best.pa = SegmentAt(best.wa[0], best.wa[1], p0, p1);
+  best.pb = best.wb[0] * a;
+  best.pb += best.wb[1] * b;
+  best.pb += best.wb[2] * c;
+  best.dist2 = (best.pa - best.pb).squaredNorm();
+  *out = best;
+  return true;
+}
+
+}  // namespace
+
+ClosestPair SegmentTriangle(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
+                            const Vec3& c) {
+  ClosestPair r;
+  SegmentTriangleUnless(p0, p1, a, b, c, -1.0, &r);
+  return r;
 }
 
 ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
   const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  // Heights of each triangle's vertices over the other's plane (n not normalised), with the
+  // same expressions Pierces uses.
+  struct Plane {
+    Vec3 n;
+    double n2 = 0;
+    bool usable = false;  // well shaped: heights / |n| are accurate distances
+  };
+  auto plane = [](const Simplex& t) {
+    Plane p;
+    const Vec3 ab = t.v[1] - t.v[0], ac = t.v[2] - t.v[0];
+    p.n = ab.cross(ac);
+    p.n2 = p.n.squaredNorm();
+    p.usable = p.n2 > 1e-8 * ab.squaredNorm() * ac.squaredNorm();
+    return p;
+  };
+  auto heights = [](const Plane& p, const Simplex& tri, const Simplex& other) {
+    return std::array<double, 3>{p.n.dot(other.v[0] - tri.v[0]), p.n.dot(other.v[1] - tri.v[0]),
+                                 p.n.dot(other.v[2] - tri.v[0])};
+  };
+  const Plane pa = plane(a), pb = plane(b);
+  const std::array<double, 3> ha = heights(pb, b, a), hb = heights(pa, a, b);
+  // An edge whose ends are strictly on one side of the other triangle's plane cannot pierce it
+  // (Pierces would find the same heights and return false).
+  auto apart = [](const std::array<double, 3>& h, const int* e) {
+    return (h[e[0]] > 0 && h[e[1]] > 0) || (h[e[0]] < 0 && h[e[1]] < 0);
+  };
   // Intersecting (not coplanar): an edge of one crosses the other.
   ClosestPair best;
   for (const auto& e : edges) {
+    if (apart(ha, e)) continue;
     if (Pierces(a.v[e[0]], a.v[e[1]], b.v[0], b.v[1], b.v[2], &best)) {
       const std::array<double, 3> w = best.wa;
       best.wa = {0, 0, 0};
@@ -200,6 +364,7 @@ ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
     }
   }
   for (const auto& e : edges) {
+    if (apart(hb, e)) continue;
     if (Pierces(b.v[e[0]], b.v[e[1]], a.v[0], a.v[1], a.v[2], &best)) {
       best = Swapped(best);
       const std::array<double, 3> w = best.wb;
@@ -211,18 +376,35 @@ ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
   }
   // Otherwise the minimum is a vertex against the other face or an edge against an edge
   // (coplanar overlaps included: a crossing edge pair or a contained vertex gives 0). Fixed
-  // evaluation order, strict improvement: ties keep the first candidate.
+  // evaluation order, strict improvement: ties keep the first candidate. A test is skipped when
+  // its plane distance (a lower bound: the other feature lies in that plane) already exceeds
+  // the best so far by more than any rounding: it could not be taken.
+  const double slack =
+      1e-9 * (1.0 + std::max(a.v[0].cwiseAbs().maxCoeff(), b.v[0].cwiseAbs().maxCoeff()) +
+              (a.v[0] - b.v[0]).norm());
+  // Squared distance bound of points with heights h0, h1 over plane p (0 if it crosses).
+  auto lower2 = [](const Plane& p, double h0, double h1) {
+    if (!p.usable || !((h0 > 0 && h1 > 0) || (h0 < 0 && h1 < 0))) return 0.0;
+    return std::min(h0 * h0, h1 * h1) / p.n2;
+  };
+  auto cannot_improve = [&](double lb2) {
+    if (best.dist2 < 0 || !(lb2 > 0)) return false;
+    const double lim = std::sqrt(best.dist2) + slack;
+    return lb2 > lim * lim;
+  };
   best.dist2 = -1;
   auto take = [&](const ClosestPair& q) {
     if (best.dist2 < 0 || q.dist2 < best.dist2) best = q;
   };
   for (int i = 0; i < 3; ++i) {
+    if (cannot_improve(lower2(pb, ha[i], ha[i]))) continue;
     ClosestPair q = PointTriangle(a.v[i], b.v[0], b.v[1], b.v[2]);
     q.wa = {0, 0, 0};
     q.wa[i] = 1;
     take(q);
   }
   for (int i = 0; i < 3; ++i) {
+    if (cannot_improve(lower2(pa, hb[i], hb[i]))) continue;
     ClosestPair q = Swapped(PointTriangle(b.v[i], a.v[0], a.v[1], a.v[2]));
     q.wb = {0, 0, 0};
     q.wb[i] = 1;
@@ -230,6 +412,11 @@ ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b) {
   }
   for (const auto& ea : edges) {
     for (const auto& eb : edges) {
+      // Edge eb lies in b's plane, edge ea in a's.
+      if (cannot_improve(
+              std::max(lower2(pb, ha[ea[0]], ha[ea[1]]), lower2(pa, hb[eb[0]], hb[eb[1]])))) {
+        continue;
+      }
       const ClosestPair s = SegmentSegment(a.v[ea[0]], a.v[ea[1]], b.v[eb[0]], b.v[eb[1]]);
       if (!(best.dist2 < 0 || s.dist2 < best.dist2)) continue;
       ClosestPair q = s;
@@ -271,6 +458,22 @@ ClosestPair Closest(const Simplex& a, const Simplex& b) {
     default:
       return TriangleTriangle(a, b);
   }
+}
+
+bool ClosestUnless(const Simplex& a, const Simplex& b, double prune_dist, ClosestPair* out) {
+  if (a.n == 2 && b.n == 3) {
+    return SegmentTriangleUnless(a.v[0], a.v[1], b.v[0], b.v[1], b.v[2], prune_dist, out);
+  }
+  if (a.n == 3 && b.n == 2) {
+    if (!SegmentTriangleUnless(b.v[0], b.v[1], a.v[0], a.v[1], a.v[2], prune_dist, out)) {
+      return false;
+    }
+    *out = Swapped(*out);
+    return true;
+  }
+
+  *out = Closest(a, b);
+  return true;
 }
 
 double RoundedTriangleGap(const Simplex& core, double radius_mm, const Vec3& a, const Vec3& b,

@@ -133,6 +133,124 @@ TEST(Proximity, SegmentSegmentMatchesSampling) { CheckPairs(2, 2, 21, 300, 400);
 TEST(Proximity, SegmentTriangleMatchesSampling) { CheckPairs(2, 3, 22, 200, 120); }
 TEST(Proximity, TriangleTriangleMatchesSampling) { CheckPairs(3, 3, 23, 150, 60); }
 
+// The segment-triangle and triangle-triangle tests skip feature pairs that a cheap plane or
+// side-plane bound proves no nearer than the best so far. Oracle: the same features evaluated
+// in full, in the same order with the same strict improvement. Skipping must never change the
+// result, bit for bit. Cases: random, and near-surface ones (a segment or triangle hovering
+// 0-0.5 over a triangle of a flat fan, 0-3 beside it), where the bounds skip most.
+ClosestPair Remapped(const ClosestPair& q, int ia0, int ia1, int ib0, int ib1, bool a_edge,
+                     bool b_edge) {
+  ClosestPair r = q;
+  if (a_edge) {
+    r.wa = {0, 0, 0};
+    r.wa[ia0] = q.wa[0];
+    r.wa[ia1] += q.wa[1];
+  }
+  if (b_edge) {
+    r.wb = {0, 0, 0};
+    r.wb[ib0] = q.wb[0];
+    r.wb[ib1] += q.wb[1];
+  }
+  return r;
+}
+
+// Full evaluation for a non-intersecting pair (a: segment or triangle, b: triangle).
+ClosestPair FullEvaluation(const Simplex& a, const Simplex& b) {
+  const int edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  ClosestPair best;
+  best.dist2 = -1;
+  auto take = [&](const ClosestPair& q) {
+    if (best.dist2 < 0 || q.dist2 < best.dist2) best = q;
+  };
+  for (int i = 0; i < a.n; ++i) {
+    ClosestPair q = PointTriangle(a.v[i], b.v[0], b.v[1], b.v[2]);
+    q.wa = {0, 0, 0};
+    q.wa[i] = 1;
+    take(q);
+  }
+  if (a.n == 3) {
+    for (int i = 0; i < 3; ++i) {
+      const ClosestPair p = PointTriangle(b.v[i], a.v[0], a.v[1], a.v[2]);
+      ClosestPair q = p;
+      q.wa = p.wb;
+      q.wb = {0, 0, 0};
+      q.wb[i] = 1;
+      take(q);
+    }
+  }
+  const int na_edges = a.n == 3 ? 3 : 1;
+  for (int ka = 0; ka < na_edges; ++ka) {
+    const int* ea = a.n == 3 ? edges[ka] : edges[0];
+    for (const auto& eb : edges) {
+      take(Remapped(SegmentSegment(a.v[ea[0]], a.v[ea[1]], b.v[eb[0]], b.v[eb[1]]), ea[0], ea[1],
+                    eb[0], eb[1], a.n == 3, true));
+    }
+  }
+  return best;
+}
+
+void CheckSkipsChangeNothing(int na, std::uint64_t seed, int cases) {
+  Random rnd{seed};
+  int compared = 0;
+  for (int c = 0; c < cases; ++c) {
+    Simplex b = RandomSimplex(&rnd, 3);
+    Simplex a = RandomSimplex(&rnd, na);
+    if (c % 2 == 1) {  // near a flat fan triangle
+      b = TriangleSimplex(Vec3(0, 0, 0), Vec3(1.5, 0, 0), Vec3(0.4, 1.3, 0));
+      const Vec3 off(3 * rnd.U() - 1, 3 * rnd.U() - 1, 0.5 * rnd.U());
+      for (int i = 0; i < na; ++i) a.v[i] = off + Vec3(rnd.U(), rnd.U(), 0.2 * rnd.U());
+    }
+    const ClosestPair r = Closest(a, b);
+    if (r.dist2 == 0) continue;  // intersecting: a crossing, not a feature minimum
+    const ClosestPair f = FullEvaluation(a, b);
+    ++compared;
+    EXPECT_EQ(r.dist2, (a.At(f.wa) - b.At(f.wb)).squaredNorm()) << na << " case " << c;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(r.wa[k], f.wa[k]) << na << " case " << c;
+      EXPECT_EQ(r.wb[k], f.wb[k]) << na << " case " << c;
+    }
+  }
+  EXPECT_GT(compared, cases / 2);
+}
+
+TEST(Proximity, SegmentTriangleSkipsChangeNothing) { CheckSkipsChangeNothing(2, 31, 4000); }
+TEST(Proximity, TriangleTriangleSkipsChangeNothing) { CheckSkipsChangeNothing(3, 32, 4000); }
+
+// ClosestUnless either equals Closest bit for bit or declines only when the pair is farther
+// than the limit; over near-surface cases it declines often (so a search saves tests).
+TEST(Proximity, ClosestUnlessDeclinesOnlyBeyondTheLimit) {
+  Random rnd{33};
+  int declined = 0;
+  const int cases = 4000;
+  for (int c = 0; c < cases; ++c) {
+    const Simplex tri = TriangleSimplex(Vec3(0, 0, 0), Vec3(1.5, 0, 0), Vec3(0.4, 1.3, 0));
+    const Vec3 off(4 * rnd.U() - 1.5, 4 * rnd.U() - 1.5, 0.6 * rnd.U() - 0.1);
+    const Simplex seg =
+        SegmentSimplex(off, off + Vec3(rnd.U() - 0.5, rnd.U() - 0.5, 0.1 * rnd.U()));
+    const double limit = 0.5 * rnd.U();
+    const bool swap = c % 3 == 0;
+    const Simplex& a = swap ? tri : seg;
+    const Simplex& b = swap ? seg : tri;
+    const ClosestPair full = Closest(a, b);
+    ClosestPair r;
+    if (!ClosestUnless(a, b, limit, &r)) {
+      ++declined;
+      EXPECT_GT(std::sqrt(full.dist2), limit) << "case " << c;
+      continue;
+    }
+    EXPECT_EQ(r.dist2, full.dist2) << "case " << c;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(r.wa[k], full.wa[k]);
+      EXPECT_EQ(r.wb[k], full.wb[k]);
+    }
+    ClosestPair never;
+    ASSERT_TRUE(ClosestUnless(a, b, -1.0, &never));  // a negative limit never declines
+    EXPECT_EQ(never.dist2, full.dist2);
+  }
+  std::printf("declined %d of %d\n", declined, cases);
+  EXPECT_GT(declined, cases / 4);
+}
+
 TEST(Proximity, PiercingSegmentHasZeroDistanceAtTheCrossing) {
   const Vec3 a(0, 0, 0), b(4, 0, 0), c(0, 4, 0);
   const ClosestPair r = SegmentTriangle(Vec3(1, 1, -1), Vec3(1, 1, 3), a, b, c);

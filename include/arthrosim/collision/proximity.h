@@ -50,6 +50,11 @@ ClosestPair TriangleTriangle(const Simplex& a, const Simplex& b);
 /// Closest points between any two simplices (dispatches to the functions above).
 ClosestPair Closest(const Simplex& a, const Simplex& b);
 
+/// Closest(a, b) into *out, or false (*out unspecified) when a cheap bound proves the two farther
+/// apart than prune_dist (mm; < 0 = never). Skipping only what cannot be nearer, so a search for
+/// the nearest of many simplices finds the same pair, bit for bit, as with Closest.
+bool ClosestUnless(const Simplex& a, const Simplex& b, double prune_dist, ClosestPair* out);
+
 /// Signed gap between a rounded simplex (core, radius) and a triangle: core distance - radius,
 /// mm (< 0 = overlap). Sphere-triangle and capsule-triangle are the n = 1 and n = 2 cases.
 double RoundedTriangleGap(const Simplex& core, double radius_mm, const Vec3& a, const Vec3& b,
