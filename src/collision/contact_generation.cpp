@@ -85,10 +85,13 @@ double BoxDist2(const Box& a, const Box& b) {
 // order. The candidate with the nearest box is tested first; then a candidate whose box is
 // clearly farther than the best so far is skipped: it can be neither the minimum nor a tie, so
 // the result is the same as testing them all. `qbox` bounds the query, `bvh` holds the
-// triangles' boxes.
+// triangles' boxes. `hint` (e.g. last step's nearest triangle), if among the candidates, is
+// tested first instead: the order of the tests never changes the result (every minimum or tie
+// is tested whatever the order, and equal minima go to the lowest index), a good first guess
+// only lets more candidates be skipped.
 Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<std::int32_t>& cand,
                          const TriangleBvh& bvh, const std::vector<Vec3>& p,
-                         const std::vector<mesh::Tri>& tris) {
+                         const std::vector<mesh::Tri>& tris, std::int32_t hint = -1) {
   Nearest best;
   const std::size_t n = cand.size();
   if (n == 0) return best;
@@ -106,14 +109,28 @@ Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<st
   }
   std::fill(d2, d2 + n, -1.0);
   std::size_t first = 0;
+  bool hinted = false;
   for (std::size_t i = 0; i < n; ++i) {
     box_d2[i] = BoxDist2(qbox, bvh.TriangleBox(cand[i]));
-    if (box_d2[i] < box_d2[first]) first = i;
+    if (cand[i] == hint) {
+      first = i;
+      hinted = true;
+    } else if (!hinted && box_d2[i] < box_d2[first]) {
+      first = i;
+    }
   }
+  // Beyond the tie tolerance below, with a wide margin for rounding: cannot matter.
+  auto beyond = [&](double lower2) { return lower2 > best.pair.dist2 * (1 + 1e-6) + 1e-12; };
   auto test = [&](std::size_t i) {
     const mesh::Tri& t = tris[cand[i]];
-    const ClosestPair c = q.n == 1 ? PointTriangle(q.v[0], p[t[0]], p[t[1]], p[t[2]])
-                                   : Closest(q, LocalTriangle(p, t));
+    ClosestPair c;
+    if (q.n == 1) {
+      c = PointTriangle(q.v[0], p[t[0]], p[t[1]], p[t[2]]);
+    } else if (!ClosestUnless(q, LocalTriangle(p, t),
+                              best.found ? std::sqrt(best.pair.dist2 * (1 + 1e-6) + 1e-12) : -1.0,
+                              &c)) {
+      return;  // provably beyond the tie tolerance, like a far box
+    }
     d2[i] = c.dist2;
     if (!best.found || c.dist2 < best.pair.dist2 ||
         (c.dist2 == best.pair.dist2 && cand[i] < best.tri)) {
@@ -124,8 +141,7 @@ Nearest NearestOnSurface(const Simplex& q, const Box& qbox, const std::vector<st
   };
   test(first);
   for (std::size_t i = 0; i < n; ++i) {
-    // Beyond the tie tolerance below, with a wide margin for rounding: cannot matter.
-    if (i == first || box_d2[i] > best.pair.dist2 * (1 + 1e-6) + 1e-12) continue;
+    if (i == first || beyond(box_d2[i])) continue;
     test(i);
   }
   best.dist = std::sqrt(best.pair.dist2);
@@ -209,7 +225,8 @@ int FirstTouch(const Sweep& sw, double reach, const Simplex& target, const Box& 
     }
     if (!NearBoxes(sw.sub_box[s], reach + kCullSlack, target_box)) continue;
     if (!PlanesAllowReach(sw.sub[s], target, reach)) continue;
-    const ClosestPair c = Closest(sw.sub[s], target);
+    ClosestPair c;
+    if (!ClosestUnless(sw.sub[s], target, reach, &c)) continue;  // provably out of reach
     if (c.dist2 < reach2) {
       *at = c;
       return static_cast<int>(s);
@@ -502,7 +519,30 @@ void ToolVolume(Builder* B, int slot, const Sweep& sw, int body, const SoftBodyS
 
 // ---- tool against thread ------------------------------------------------------------------
 
-void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
+// Boxes of a thread's alive segments, and of runs of kRun consecutive segments (to skip a far
+// thread fast); empty boxes for dead segments. Made once per step, used by every tool part.
+constexpr std::size_t kRun = 8;
+struct ThreadBoxes {
+  std::vector<Box> seg, run;
+};
+
+void MakeThreadBoxes(const Builder& B, int thread, ThreadBoxes* out) {
+  const ThreadModel& tm = B.model.threads[thread];
+  const Points& x = B.state.threads[thread].x;
+  const std::size_t ne = tm.initial.edges.size();
+  out->seg.assign(ne, Box{});
+  out->run.assign((ne + kRun - 1) / kRun, Box{});
+  for (std::size_t i = 0; i < ne; ++i) {
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
+    if (!B.ThreadAlive(thread, a) || !B.ThreadAlive(thread, b)) continue;
+    out->seg[i].Add(x.col(a));
+    out->seg[i].Add(x.col(b));
+    out->run[i / kRun].Add(x.col(a));
+    out->run[i / kRun].Add(x.col(b));
+  }
+}
+
+void ToolThread(Builder* B, int slot, const Sweep& sw, int thread, const ThreadBoxes& boxes) {
   const CollisionParams& P = B->params;
   const ThreadModel& tm = B->model.threads[thread];
   const Points& x = B->state.threads[thread].x;
@@ -510,19 +550,8 @@ void ToolThread(Builder* B, int slot, const Sweep& sw, int thread) {
   const double r = sw.prim->radius_mm;
   const double reach = r + rt + P.alarm_distance_mm;
   const std::size_t ne = tm.initial.edges.size();
-  // Segment boxes, and boxes of runs of kRun consecutive segments to skip a far thread fast.
-  constexpr std::size_t kRun = 8;
-  thread_local std::vector<Box> seg_box, run_box;
-  seg_box.assign(ne, Box{});
-  run_box.assign((ne + kRun - 1) / kRun, Box{});
-  for (std::size_t i = 0; i < ne; ++i) {
-    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
-    if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
-    seg_box[i].Add(x.col(a));
-    seg_box[i].Add(x.col(b));
-    run_box[i / kRun].Add(x.col(a));
-    run_box[i / kRun].Add(x.col(b));
-  }
+  const std::vector<Box>& seg_box = boxes.seg;
+  const std::vector<Box>& run_box = boxes.run;
   std::int32_t last_single = -1;  // a node already given a contact by the previous segment
   for (std::size_t i = 0; i < ne; ++i) {
     if (i % kRun == 0 && (run_box[i / kRun].Empty() || !sw.Near(reach, run_box[i / kRun]))) {
@@ -615,10 +644,12 @@ void ThreadSurfaceContact(Builder* B, int thread, PointContact c, const Nearest&
 // `query(i, box, out)` lists the triangles whose box overlaps `box` (ascending) for query slot i
 // (segment i - n for i >= n, n = node count; slots below n are left for node queries): a tree
 // query, or a NearBoneCache lookup for a bone.
+// `batch`: segment candidates come from `bvh` by one query per run of segments instead.
+// `hint`: per node then segment, the last nearest triangle (search hints, kept by the caller).
 template <class Query>
 void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, const Surface& s,
                    const std::vector<Vec3>& pos, const TriangleBvh& bvh, double stiffness,
-                   const Query& query) {
+                   bool batch, std::vector<std::int32_t>* hint, const Query& query) {
   const CollisionParams& P = B->params;
   const ThreadModel& tm = B->model.threads[thread];
   const Points& x = B->state.threads[thread].x;
@@ -638,6 +669,7 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
   thread_local std::vector<std::int32_t> node_seg;  // a segment with candidates around the node
   thread_local std::vector<std::uint8_t> pierced, blocked_edge, blocked_node, near_node;
   seg.assign(ne, Nearest{});
+  if (hint->size() != static_cast<std::size_t>(nn) + ne) hint->assign(nn + ne, -1);
   if (seg_tris.size() < ne) seg_tris.resize(ne);
   node_seg.assign(static_cast<std::size_t>(nn), -1);
   pierced.assign(ne, 0);
@@ -645,6 +677,8 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
   blocked_node.assign(static_cast<std::size_t>(nn), 0);
   near_node.assign(static_cast<std::size_t>(nn), 0);
   // Segments: piercings (a stitch passes through the surface there) and candidates.
+  thread_local std::vector<std::int32_t> run_tris;
+  std::size_t run_of = ne;  // run whose union query run_tris holds
   for (std::size_t i = 0; i < ne; ++i) {
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
     if (!B->ThreadAlive(thread, a) || !B->ThreadAlive(thread, b)) continue;
@@ -653,10 +687,32 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
     const Box q = sbox.Inflated(reach);
     if (!q.Overlaps(bounds)) continue;
     std::vector<std::int32_t>& st = seg_tris[i];
-    query(static_cast<std::size_t>(nn) + i, q, &st);
+    if (batch) {
+      // One tree query per run of kRun segments (their boxes' union), filtered per segment:
+      // the same ascending list as a query with q, for a fraction of the traversals.
+      if (i / kRun != run_of) {
+        run_of = i / kRun;
+        Box u;
+        for (std::size_t j = run_of * kRun; j < std::min(ne, (run_of + 1) * kRun); ++j) {
+          const std::int32_t ja = tm.initial.edges[j][0], jb = tm.initial.edges[j][1];
+          if (!B->ThreadAlive(thread, ja) || !B->ThreadAlive(thread, jb)) continue;
+          u.Add(x.col(ja));
+          u.Add(x.col(jb));
+        }
+        run_tris.clear();
+        bvh.Query(u.Inflated(reach), &run_tris);
+      }
+      st.clear();
+      for (std::int32_t t : run_tris) {
+        if (bvh.TriangleBox(t).Overlaps(q)) st.push_back(t);
+      }
+    } else {
+      query(static_cast<std::size_t>(nn) + i, q, &st);
+    }
     if (st.empty()) continue;
-    seg[i] = NearestOnSurface(sg, sbox, st, bvh, pos, s.local_tris);
+    seg[i] = NearestOnSurface(sg, sbox, st, bvh, pos, s.local_tris, (*hint)[nn + i]);
     if (!seg[i].found) continue;
+    (*hint)[nn + i] = seg[i].tri;
     near_node[a] = near_node[b] = 1;
     if (node_seg[a] < 0) node_seg[a] = static_cast<std::int32_t>(i);
     if (node_seg[b] < 0) node_seg[b] = static_cast<std::int32_t>(i);
@@ -687,7 +743,8 @@ void ThreadSurface(Builder* B, int thread, Kind obstacle, int obstacle_index, co
     for (std::int32_t t : seg_tris[node_seg[v]]) {
       if (bvh.TriangleBox(t).Overlaps(q)) tris.push_back(t);
     }
-    const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris);
+    const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, (*hint)[v]);
+    if (n.found) (*hint)[v] = n.tri;
     if (!n.found || !in_contact(n)) continue;
     ThreadSurfaceContact(B, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
                          obstacle_index, s, rt, stiffness);
@@ -739,6 +796,21 @@ void NearBoneTriangles(const CollisionWorld::BoneEntry& g, NearBoneCache* cache,
   }
 }
 
+// After NearBoneTriangles(g, cache, i, query, ...): a lower bound of the distance from `from` (a
+// point inside `query`) to every bone triangle it left out (mm): the nearest left-out box in the
+// list, or the wide box's faces, beyond which no unlisted triangle lies.
+double LeftOutLowerBound(const CollisionWorld::BoneEntry& g, const NearBoneCache& cache,
+                         std::size_t i, const Box& query, const Vec3& from) {
+  const Box& w = cache.wide[i];
+  const Box at{from, from};
+  double lower2 = std::pow(std::min((w.hi - from).minCoeff(), (from - w.lo).minCoeff()), 2);
+  for (std::int32_t t : cache.tris[i]) {
+    const Box& b = g.bvh.TriangleBox(t);
+    if (!b.Overlaps(query)) lower2 = std::min(lower2, BoxDist2(at, b));
+  }
+  return std::sqrt(lower2);
+}
+
 void ResetNearBone(std::int64_t version, std::size_t slots, NearBoneCache* cache) {
   if (cache->bone_version == version && cache->wide.size() == slots) return;
   cache->bone_version = version;
@@ -747,6 +819,7 @@ void ResetNearBone(std::int64_t version, std::size_t slots, NearBoneCache* cache
   cache->tris.assign(slots, {});
   cache->far_at.assign(slots, Vec3::Zero());
   cache->far_margin.assign(slots, -1.0);
+  cache->hint.assign(slots, -1);
 }
 
 // True if every undirected edge of the triangles is shared by exactly two of them.
@@ -786,19 +859,29 @@ void TissueBone(Builder* B, int body, CollisionWorld::SoftEntry& s, int bone,
     // same search now would too (no contact; the candidate cache is only a shortcut).
     if (cache.far_margin[vi] > 0 && (p - cache.far_at[vi]).norm() < cache.far_margin[vi]) continue;
     cache.far_margin[vi] = -1;
-    NearBoneTriangles(g, &cache, vi, Box{p.array() - margin, p.array() + margin}, &cand);
-    if (cand.empty()) continue;
-    const Nearest n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, g.bvh, g.positions,
-                                       g.indexed.local_tris);
-    if (!n.found) continue;
-    const double sd = n.Signed();
-    if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) {
+    const Box query{p.array() - margin, p.array() + margin};
+    NearBoneTriangles(g, &cache, vi, query, &cand);
+    const Nearest n = cand.empty()
+                          ? Nearest{}
+                          : NearestOnSurface(PointSimplex(p), Box{p, p}, cand, g.bvh, g.positions,
+                                             g.indexed.local_tris, cache.hint[vi]);
+    if (n.found) cache.hint[vi] = n.tri;
+    const double sd = n.found ? n.Signed() : margin;
+    if (!n.found || (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm)) {
+      // No contact. The unsigned distance to the bone is at least `lower`; while the vertex
+      // moves less than lower - margin it stays beyond both contact ranges (alarm outside,
+      // max depth inside), so every search would find no contact.
+      const double rest = LeftOutLowerBound(g, cache, vi, query, p);  // triangles not searched
+      const double lower = n.found ? std::min(n.dist, rest) : rest;
+      double bound = lower - margin - kCertSlack;
       // Outside a closed surface within `margin` (so the search saw every triangle that near
       // and the sign is exact), the signed distance is 1-Lipschitz: after moving less than
       // sd - alarm the vertex is still out of reach. (Around the rim of an open surface the
       // sign may flip; beyond `margin` the search only bounds the distance from above.)
-      const double bound = sd - P.alarm_distance_mm - kCertSlack;
-      if (g.closed && sd < margin && bound > 0) {
+      if (n.found && g.closed && sd < margin) {
+        bound = std::max(bound, sd - P.alarm_distance_mm - kCertSlack);
+      }
+      if (bound > 0) {
         cache.far_at[vi] = p;
         cache.far_margin[vi] = bound;
       }
@@ -1183,7 +1266,10 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
   }
   for (CollisionWorld::BoneEntry& e : world->bones) e.far_soft.resize(world->soft.size());
   world->threads.resize(state.threads.size());
-  for (CollisionWorld::ThreadEntry& e : world->threads) e.near_bone.resize(world->bones.size());
+  for (CollisionWorld::ThreadEntry& e : world->threads) {
+    e.near_bone.resize(world->bones.size());
+    e.soft_hint.resize(world->soft.size());
+  }
 }
 
 void Detect(const Model& model, const State& state,
@@ -1200,6 +1286,9 @@ void Detect(const Model& model, const State& state,
   Builder B{model, state, params, scratch_contacts, scratch_kinds};
   out->bone_force_n.fill(Vec3::Zero());
   out->bone_touches.clear();
+  thread_local std::vector<ThreadBoxes> thread_boxes;  // made when a tool is inserted
+  if (thread_boxes.size() < state.threads.size()) thread_boxes.resize(state.threads.size());
+  bool boxes_made = false;
   for (int slot = 0; slot < kToolSlots; ++slot) {
     out->substeps[slot] = 0;
     const std::size_t used =
@@ -1212,8 +1301,14 @@ void Detect(const Model& model, const State& state,
         ToolVolume(&B, slot, sw, static_cast<int>(b), state.soft_bodies[b], world->soft[b]);
       }
     }
+    if (!sweeps.empty() && !boxes_made) {
+      for (std::size_t t = 0; t < state.threads.size(); ++t) {
+        MakeThreadBoxes(B, static_cast<int>(t), &thread_boxes[t]);
+      }
+      boxes_made = true;
+    }
     for (std::size_t t = 0; t < state.threads.size(); ++t) {
-      for (const Sweep& sw : sweeps) ToolThread(&B, slot, sw, static_cast<int>(t));
+      for (const Sweep& sw : sweeps) ToolThread(&B, slot, sw, static_cast<int>(t), thread_boxes[t]);
     }
     for (std::size_t g = 0; g < world->bones.size(); ++g) {
       double deepest = 0;
@@ -1230,7 +1325,8 @@ void Detect(const Model& model, const State& state,
     for (std::size_t b = 0; b < world->soft.size(); ++b) {
       const auto& e = world->soft[b];
       ThreadSurface(&B, static_cast<int>(t), Kind::kSoftBody, static_cast<int>(b), e.surface,
-                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm,
+                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm, true,
+                    &world->threads[t].soft_hint[b],
                     [&](std::size_t, const Box& q, std::vector<std::int32_t>* out) {
                       out->clear();
                       e.bvh.Query(q, out);
@@ -1243,7 +1339,7 @@ void Detect(const Model& model, const State& state,
                                 model.threads[t].initial.edges.size();
       ResetNearBone(e.version, slots, &cache);
       ThreadSurface(&B, static_cast<int>(t), Kind::kBone, static_cast<int>(g), e.indexed,
-                    e.positions, e.bvh, params.bone_stiffness_n_per_mm,
+                    e.positions, e.bvh, params.bone_stiffness_n_per_mm, false, &cache.hint,
                     [&](std::size_t i, const Box& q, std::vector<std::int32_t>* out) {
                       NearBoneTriangles(e, &cache, i, q, out);
                     });

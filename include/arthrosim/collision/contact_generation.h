@@ -70,6 +70,9 @@ struct NearBoneCache {
   /// static surface changes by at most the distance moved); far_margin < 0 = no such bound.
   std::vector<Vec3> far_at;
   std::vector<double> far_margin;
+  /// Nearest triangle found for each slot last time (-1 = none): tested first next time, which
+  /// only saves tests (see NearestOnSurface).
+  std::vector<std::int32_t> hint;
 };
 
 /// Out-of-reach bounds for query points against a moving surface (temporal coherence that never
@@ -133,6 +136,8 @@ struct CollisionWorld {
   };
   struct ThreadEntry {
     std::vector<NearBoneCache> near_bone;  ///< per bone, per thread node then segment
+    /// Per soft body, per thread node then segment: last nearest triangle (a search hint only).
+    std::vector<std::vector<std::int32_t>> soft_hint;
   };
   std::vector<SoftEntry> soft;
   std::vector<BoneEntry> bones;
