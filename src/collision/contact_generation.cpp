@@ -6,6 +6,8 @@
 #include <span>
 #include <tuple>
 
+#include "arthrosim/core/parallel.h"
+
 namespace arthrosim::collision {
 namespace {
 
@@ -526,15 +528,19 @@ struct ThreadBoxes {
   std::vector<Box> seg, run;
 };
 
-void MakeThreadBoxes(const Builder& B, int thread, ThreadBoxes* out) {
-  const ThreadModel& tm = B.model.threads[thread];
-  const Points& x = B.state.threads[thread].x;
+void MakeThreadBoxes(const Model& model, const State& state, int thread, ThreadBoxes* out) {
+  const ThreadModel& tm = model.threads[thread];
+  const Points& x = state.threads[thread].x;
+  const auto& alive = state.threads[thread].node_alive;
+  auto is_alive = [&](std::int32_t node) {
+    return node < static_cast<std::int32_t>(alive.size()) && alive[node] != 0;
+  };
   const std::size_t ne = tm.initial.edges.size();
   out->seg.assign(ne, Box{});
   out->run.assign((ne + kRun - 1) / kRun, Box{});
   for (std::size_t i = 0; i < ne; ++i) {
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
-    if (!B.ThreadAlive(thread, a) || !B.ThreadAlive(thread, b)) continue;
+    if (!is_alive(a) || !is_alive(b)) continue;
     out->seg[i].Add(x.col(a));
     out->seg[i].Add(x.col(b));
     out->run[i / kRun].Add(x.col(a));
@@ -1201,6 +1207,67 @@ std::size_t MakeSweeps(const Model& model, const ToolState& prev, const ToolStat
   return used;
 }
 
+// Everything one tool slot touches this step: tissue (surface and volume), threads, bones (the
+// reaction goes to out->bone_force_n[slot], the touches to *touches).
+void DetectToolSlot(Builder* B, int slot, const std::array<ToolState, kToolSlots>& prev_tools,
+                    CollisionWorld* world, const std::vector<ThreadBoxes>& thread_boxes,
+                    CollisionOutput* out, std::vector<ToolContact>* touches) {
+  const Model& model = B->model;
+  const State& state = B->state;
+  thread_local std::array<std::vector<ToolPrimitive>, kToolSlots> prims, before;
+  thread_local std::array<std::vector<Sweep>, kToolSlots> slot_sweeps;
+  out->substeps[slot] = 0;
+  const std::size_t used =
+      MakeSweeps(model, prev_tools[slot], state.tools[slot], B->params, &prims[slot], &before[slot],
+                 &slot_sweeps[slot], &out->substeps[slot]);
+  const std::span<const Sweep> sweeps(slot_sweeps[slot].data(), used);
+  for (std::size_t b = 0; b < world->soft.size(); ++b) {
+    for (const Sweep& sw : sweeps) {
+      ToolTissue(B, slot, sw, static_cast<int>(b), world->soft[b]);
+      ToolVolume(B, slot, sw, static_cast<int>(b), state.soft_bodies[b], world->soft[b]);
+    }
+  }
+  if (!sweeps.empty()) {
+    for (std::size_t t = 0; t < state.threads.size(); ++t) {
+      for (const Sweep& sw : sweeps) ToolThread(B, slot, sw, static_cast<int>(t), thread_boxes[t]);
+    }
+  }
+  for (std::size_t g = 0; g < world->bones.size(); ++g) {
+    double deepest = 0;
+    Vec3 point = Vec3::Zero();
+    for (const Sweep& sw : sweeps) {
+      ToolBone(B, slot, sw, world->bones[g], out, &deepest, &point);
+    }
+    if (deepest > 0) touches->push_back(ToolContact{slot, Kind::kBone, static_cast<int>(g), point});
+  }
+}
+
+// One thread against every soft surface (both sides) and bone (thread side).
+void DetectThread(Builder* B, int t, CollisionWorld* world) {
+  const CollisionParams& params = B->params;
+  for (std::size_t b = 0; b < world->soft.size(); ++b) {
+    const auto& e = world->soft[b];
+    ThreadSurface(B, t, Kind::kSoftBody, static_cast<int>(b), e.surface, e.positions, e.bvh,
+                  params.thread_tissue_stiffness_n_per_mm, true, &world->threads[t].soft_hint[b],
+                  [&](std::size_t, const Box& q, std::vector<std::int32_t>* out) {
+                    out->clear();
+                    e.bvh.Query(q, out);
+                  });
+  }
+  for (std::size_t g = 0; g < world->bones.size(); ++g) {
+    const auto& e = world->bones[g];
+    NearBoneCache& cache = world->threads[t].near_bone[g];
+    const std::size_t slots = static_cast<std::size_t>(B->state.threads[t].x.cols()) +
+                              B->model.threads[t].initial.edges.size();
+    ResetNearBone(e.version, slots, &cache);
+    ThreadSurface(B, t, Kind::kBone, static_cast<int>(g), e.indexed, e.positions, e.bvh,
+                  params.bone_stiffness_n_per_mm, false, &cache.hint,
+                  [&](std::size_t i, const Box& q, std::vector<std::int32_t>* out) {
+                    NearBoneTriangles(e, &cache, i, q, out);
+                  });
+  }
+}
+
 }  // namespace
 
 void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
@@ -1227,18 +1294,30 @@ void SyncWorld(const Model& model, const State& state, CollisionWorld* world) {
       ++e.version;
       e.drift_mm = 0;
       ++world->rebuilds;
+      e.refit_pending = false;
     } else {
-      // Refit, and the surface's drift (largest vertex move) for the out-of-reach bounds.
-      double move2 = 0;
-      for (std::size_t i = 0; i < e.surface.vertices.size(); ++i) {
-        const Vec3 q = sb.x.col(e.surface.vertices[i]);
-        move2 = std::max(move2, (q - e.positions[i]).squaredNorm());
-        e.positions[i] = q;
-      }
-      e.drift_mm += std::sqrt(move2);
-      e.bvh.Refit(e.positions);
+      e.refit_pending = true;
     }
   }
+  // Refit the others, and each surface's drift (largest vertex move) for the out-of-reach
+  // bounds: independent per body.
+  ParallelFor(static_cast<std::int64_t>(state.soft_bodies.size()), 1,
+              [&](std::int64_t begin, std::int64_t end) {
+                for (std::int64_t b = begin; b < end; ++b) {
+                  CollisionWorld::SoftEntry& e = world->soft[static_cast<std::size_t>(b)];
+                  if (!e.refit_pending) continue;
+                  const Points& x = state.soft_bodies[static_cast<std::size_t>(b)].x;
+                  double move2 = 0;
+                  for (std::size_t i = 0; i < e.surface.vertices.size(); ++i) {
+                    const Vec3 q = x.col(e.surface.vertices[i]);
+                    move2 = std::max(move2, (q - e.positions[i]).squaredNorm());
+                    e.positions[i] = q;
+                  }
+                  e.drift_mm += std::sqrt(move2);
+                  e.bvh.Refit(e.positions);
+                  e.refit_pending = false;
+                }
+              });
   world->bones.resize(state.bones.size());
   for (std::size_t g = 0; g < state.bones.size(); ++g) {
     const mesh::TriMesh& m = state.bones[g].surface;
@@ -1276,94 +1355,86 @@ void Detect(const Model& model, const State& state,
             const std::array<ToolState, kToolSlots>& prev_tools, const CollisionParams& params,
             CollisionWorld* world, CollisionOutput* out) {
   SyncWorld(model, state, world);
-  // Scratch kept across steps (no heap allocation in a steady-state step).
-  thread_local std::vector<PointContact> scratch_contacts;
-  thread_local std::vector<Kind> scratch_kinds;
-  thread_local std::array<std::vector<ToolPrimitive>, kToolSlots> prims, before;
-  thread_local std::array<std::vector<Sweep>, kToolSlots> slot_sweeps;
-  scratch_contacts.clear();
-  scratch_kinds.clear();
-  Builder B{model, state, params, scratch_contacts, scratch_kinds};
   out->bone_force_n.fill(Vec3::Zero());
   out->bone_touches.clear();
-  thread_local std::vector<ThreadBoxes> thread_boxes;  // made when a tool is inserted
+  // Thread segment boxes for the tool tests, shared by both slots.
+  thread_local std::vector<ThreadBoxes> thread_boxes;
   if (thread_boxes.size() < state.threads.size()) thread_boxes.resize(state.threads.size());
-  bool boxes_made = false;
-  for (int slot = 0; slot < kToolSlots; ++slot) {
-    out->substeps[slot] = 0;
-    const std::size_t used =
-        MakeSweeps(model, prev_tools[slot], state.tools[slot], params, &prims[slot], &before[slot],
-                   &slot_sweeps[slot], &out->substeps[slot]);
-    const std::span<const Sweep> sweeps(slot_sweeps[slot].data(), used);
-    for (std::size_t b = 0; b < world->soft.size(); ++b) {
-      for (const Sweep& sw : sweeps) {
-        ToolTissue(&B, slot, sw, static_cast<int>(b), world->soft[b]);
-        ToolVolume(&B, slot, sw, static_cast<int>(b), state.soft_bodies[b], world->soft[b]);
-      }
-    }
-    if (!sweeps.empty() && !boxes_made) {
-      for (std::size_t t = 0; t < state.threads.size(); ++t) {
-        MakeThreadBoxes(B, static_cast<int>(t), &thread_boxes[t]);
-      }
-      boxes_made = true;
-    }
+  bool tool_in = false;
+  for (const ToolState& t : state.tools) tool_in = tool_in || t.instrument >= 0;
+  if (tool_in) {
     for (std::size_t t = 0; t < state.threads.size(); ++t) {
-      for (const Sweep& sw : sweeps) ToolThread(&B, slot, sw, static_cast<int>(t), thread_boxes[t]);
-    }
-    for (std::size_t g = 0; g < world->bones.size(); ++g) {
-      double deepest = 0;
-      Vec3 point = Vec3::Zero();
-      for (const Sweep& sw : sweeps) {
-        ToolBone(&B, slot, sw, world->bones[g], out, &deepest, &point);
-      }
-      if (deepest > 0) {
-        out->bone_touches.push_back(ToolContact{slot, Kind::kBone, static_cast<int>(g), point});
-      }
+      MakeThreadBoxes(model, state, static_cast<int>(t), &thread_boxes[t]);
     }
   }
-  for (std::size_t t = 0; t < state.threads.size(); ++t) {
-    for (std::size_t b = 0; b < world->soft.size(); ++b) {
-      const auto& e = world->soft[b];
-      ThreadSurface(&B, static_cast<int>(t), Kind::kSoftBody, static_cast<int>(b), e.surface,
-                    e.positions, e.bvh, params.thread_tissue_stiffness_n_per_mm, true,
-                    &world->threads[t].soft_hint[b],
-                    [&](std::size_t, const Box& q, std::vector<std::int32_t>* out) {
-                      out->clear();
-                      e.bvh.Query(q, out);
-                    });
+  // Independent tasks, in the order the contacts would be created one after the other: tool
+  // slots, threads (against tissue and bone), soft bodies (against bones), soft bodies (against
+  // other soft bodies). Each task writes its own lists and only world data no other task reads
+  // or writes (its slot's sweeps and bone force, its thread's caches, its body's caches), so
+  // the merged lists are the same for any thread count and any order of completion.
+  const std::size_t nthreads = state.threads.size(), nsoft = world->soft.size();
+  const std::size_t tissue_tasks = params.tissue_tissue_contacts ? nsoft : 0;
+  const std::size_t ntasks = kToolSlots + nthreads + nsoft + tissue_tasks;
+  struct TaskOut {
+    std::vector<PointContact> contacts;
+    std::vector<Kind> kinds;
+    std::vector<ToolContact> touches;
+  };
+  thread_local std::vector<TaskOut> task_scratch;  // kept across steps
+  if (task_scratch.size() < ntasks) task_scratch.resize(ntasks);
+  // Plain references: inside the task body a thread_local name would mean the worker's own.
+  std::vector<TaskOut>& task_out = task_scratch;
+  const std::vector<ThreadBoxes>& boxes = thread_boxes;
+  auto run_task = [&](std::size_t task) {
+    TaskOut& to = task_out[task];
+    to.contacts.clear();
+    to.kinds.clear();
+    to.touches.clear();
+    Builder B{model, state, params, to.contacts, to.kinds};
+    if (task < static_cast<std::size_t>(kToolSlots)) {
+      DetectToolSlot(&B, static_cast<int>(task), prev_tools, world, boxes, out, &to.touches);
+      return;
     }
-    for (std::size_t g = 0; g < world->bones.size(); ++g) {
-      const auto& e = world->bones[g];
-      NearBoneCache& cache = world->threads[t].near_bone[g];
-      const std::size_t slots = static_cast<std::size_t>(state.threads[t].x.cols()) +
-                                model.threads[t].initial.edges.size();
-      ResetNearBone(e.version, slots, &cache);
-      ThreadSurface(&B, static_cast<int>(t), Kind::kBone, static_cast<int>(g), e.indexed,
-                    e.positions, e.bvh, params.bone_stiffness_n_per_mm, false, &cache.hint,
-                    [&](std::size_t i, const Box& q, std::vector<std::int32_t>* out) {
-                      NearBoneTriangles(e, &cache, i, q, out);
-                    });
+    task -= kToolSlots;
+    if (task < nthreads) {
+      DetectThread(&B, static_cast<int>(task), world);
+      return;
     }
-  }
-  for (std::size_t b = 0; b < world->soft.size(); ++b) {
-    for (std::size_t g = 0; g < world->bones.size(); ++g) {
-      TissueBone(&B, static_cast<int>(b), world->soft[b], static_cast<int>(g), world->bones[g]);
-      if (params.bone_tip_contacts) {
-        BoneTipTissue(&B, static_cast<int>(b), world->soft[b], static_cast<int>(g),
-                      world->bones[g]);
-      }
-    }
-  }
-  if (params.tissue_tissue_contacts) {
-    for (std::size_t a = 0; a < world->soft.size(); ++a) {
-      for (std::size_t b = 0; b < world->soft.size(); ++b) {
-        if (a != b) {
-          TissueTissue(&B, static_cast<int>(a), world->soft[a], static_cast<int>(b),
-                       world->soft[b]);
+    task -= nthreads;
+    if (task < nsoft) {
+      for (std::size_t g = 0; g < world->bones.size(); ++g) {
+        TissueBone(&B, static_cast<int>(task), world->soft[task], static_cast<int>(g),
+                   world->bones[g]);
+        if (params.bone_tip_contacts) {
+          BoneTipTissue(&B, static_cast<int>(task), world->soft[task], static_cast<int>(g),
+                        world->bones[g]);
         }
       }
+      return;
     }
+    task -= nsoft;
+    for (std::size_t b = 0; b < nsoft; ++b) {
+      if (b != task) {
+        TissueTissue(&B, static_cast<int>(task), world->soft[task], static_cast<int>(b),
+                     world->soft[b]);
+      }
+    }
+  };
+  ParallelFor(static_cast<std::int64_t>(ntasks), 1, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t t = begin; t < end; ++t) run_task(static_cast<std::size_t>(t));
+  });
+  // Merged in task order (scratch kept across steps: no heap allocation in a steady state).
+  thread_local std::vector<PointContact> scratch_contacts;
+  thread_local std::vector<Kind> scratch_kinds;
+  scratch_contacts.clear();
+  scratch_kinds.clear();
+  for (std::size_t t = 0; t < ntasks; ++t) {
+    const TaskOut& to = task_out[t];
+    scratch_contacts.insert(scratch_contacts.end(), to.contacts.begin(), to.contacts.end());
+    scratch_kinds.insert(scratch_kinds.end(), to.kinds.begin(), to.kinds.end());
+    out->bone_touches.insert(out->bone_touches.end(), to.touches.begin(), to.touches.end());
   }
+  Builder B{model, state, params, scratch_contacts, scratch_kinds};
   // Creation order never matters: sort by (tool, target, body, obstacle, feature) and, for
   // completeness, by the remaining values.
   thread_local std::vector<std::size_t> order;

@@ -1,6 +1,6 @@
 #pragma once
 // Timing of the collision stage on a full scene, for `arthrosim bench` and Google Benchmark.
-// Time is measured here only (thread CPU time); it never influences a simulation result.
+// Time is measured here only; it never influences a simulation result.
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -24,10 +24,13 @@ Model MakeBenchmarkModel();
 
 /// Collision stage figures over a run.
 struct CollisionBenchResult {
-  double median_ms = 0;       ///< median thread CPU time of Detect per step, ms
+  /// Median time of Detect per step, ms: the calling thread's CPU time with one thread (not
+  /// disturbed by other processes), wall time with more (ThreadCount() > 1).
+  double median_ms = 0;
   double p90_ms = 0;          ///< 90th percentile, ms
   double mean_contacts = 0;   ///< contacts per step
   std::int64_t rebuilds = 0;  ///< tree builds (first step + topology changes)
+  int threads = 1;            ///< ThreadCount() during the run
 };
 
 /// Runs `steps` collision stages on `model` (any scenario; made for scenarios/bench_full.yaml):

@@ -118,6 +118,7 @@ struct CollisionWorld {
     std::int64_t version = 0;  ///< increases at every surface rebuild
     /// Sum over refits of the largest surface vertex displacement, mm (FarBounds drift).
     double drift_mm = 0;
+    bool refit_pending = false;       ///< SyncWorld's mark between its rebuild and refit passes
     std::vector<FarBounds> far_soft;  ///< per other soft body, per local surface vertex
   };
   struct BoneEntry {
