@@ -8,8 +8,9 @@
 
 namespace arthrosim {
 
-/// Sets the number of worker threads used by ParallelFor (1 = run inline). Not thread-safe;
-/// call before a run.
+/// Sets the number of threads used by ParallelFor (1 = run inline): starts or stops the
+/// persistent pool's threads - 1 workers, which wait for loops between calls. Not thread-safe;
+/// call before a run, not while a loop runs.
 void SetThreadCount(int threads);
 /// Current thread count (>= 1).
 int ThreadCount();
@@ -33,8 +34,10 @@ class BlockBody {
 };
 
 /// Calls body(begin, end) for fixed blocks of `block` items covering [0, n). Blocks may run
-/// concurrently; body must not write anything another block reads or writes.
-/// With one thread it runs inline and allocates nothing.
+/// concurrently; body must not write anything another block reads or writes. Allocates nothing;
+/// with one thread, or inside another loop's body, it runs inline. The first exception a block
+/// throws is rethrown here after every started block has finished. Note: a `thread_local` named
+/// inside body is the running thread's own.
 void ParallelFor(std::int64_t n, std::int64_t block, BlockBody body);
 
 }  // namespace arthrosim
