@@ -612,6 +612,52 @@ void SoftSystem::BuildPointTerms(const Model& model, const Eigen::VectorXd& x, C
   }
 }
 
+bool SoftSystem::ActivateCrossedContacts(double h, ContactSet* contacts) {
+  const std::size_t first = terms_.size();
+  for (PointContact& c : *contacts) {
+    // force_n: -1 = active this step, 0 = apart at the start (BuildPointTerms).
+    if (c.target != PointContact::Target::kSoftBody || c.force_n != 0) continue;
+    if (c.index < 0 || static_cast<std::size_t>(c.index) >= bodies_.size()) continue;
+    const Body& bd = bodies_[static_cast<std::size_t>(c.index)];
+    PointTerm term;
+    Vec3 p_start = Vec3::Zero(), p_end = Vec3::Zero();
+    bool any = false;
+    for (int a = 0; a < 4; ++a) {
+      const std::int32_t n = c.nodes[static_cast<std::size_t>(a)];
+      if (n < 0 || static_cast<std::size_t>(n) >= bd.slot.size()) continue;
+      const std::int32_t s = bd.slot[static_cast<std::size_t>(n)];
+      const double w = c.weights[static_cast<std::size_t>(a)];
+      term.slot[static_cast<std::size_t>(a)] = s;
+      term.w[static_cast<std::size_t>(a)] = w;
+      p_start += w * Seg(x_, s);
+      p_end += w * (Seg(x_, s) + h * (Seg(v_, s) + Seg(dv_, s)));
+      any = true;
+    }
+    if (!any || !(c.offset_mm - c.normal.dot(p_end) > 0)) continue;
+    const double k = c.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
+    term.k = k * (c.normal * c.normal.transpose());
+    // Its share of b = h f - h^2 K_c v: the force linearised at the start (where it is apart,
+    // so k * pen < 0) plus the stiffness gives k * pen at the end point, as for any term.
+    const Vec3 force = (k * (c.offset_mm - c.normal.dot(p_start))) * c.normal;
+    Vec3 pv = Vec3::Zero();
+    for (int a = 0; a < 4; ++a) {
+      const std::int32_t s = term.slot[static_cast<std::size_t>(a)];
+      if (s >= 0) pv += term.w[static_cast<std::size_t>(a)] * Seg(v_, s);
+    }
+    const Vec3 rhs = h * force - (h * h) * (term.k * pv);
+    for (int a = 0; a < 4; ++a) {
+      const std::int32_t s = term.slot[static_cast<std::size_t>(a)];
+      if (s >= 0 && free_[static_cast<std::size_t>(s)]) {
+        Seg(f_, s) += term.w[static_cast<std::size_t>(a)] * force;
+        Seg(b_, s) += term.w[static_cast<std::size_t>(a)] * rhs;
+      }
+    }
+    terms_.push_back(term);
+    c.force_n = -1;  // active from now on (final value in FillOutputs)
+  }
+  return terms_.size() > first;
+}
+
 void SoftSystem::BuildBlockJacobi(double h) {
   for (std::int32_t s = 0; s < slots_; ++s) {
     const auto i = static_cast<std::size_t>(s);
@@ -952,9 +998,22 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   const double reference = h * model.options.gravity_mm_s2.norm() * std::sqrt(m2);
   const CgResult cg = SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations,
                                model.solver.cg_tolerance, reference, &cg_scratch_);
+  CgResult last = cg;
+  int cg_total = cg.iterations;
+  // A contact apart at the start of the step but crossed by its end (a fast approach passes the
+  // skin within one step) takes part from now on: its term enters the system and the step is
+  // solved again from this solution, at most kCrossRounds times.
+  for (int round = 0; round < kCrossRounds && contacts != nullptr; ++round) {
+    if (!ActivateCrossedContacts(h, contacts)) break;
+    if (!(preconditioner_ == Preconditioner::kRestCholesky && factor_.ok())) BuildBlockJacobi(h);
+    last = SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance,
+                    reference, &cg_scratch_);
+    cg_total += last.iterations;
+    ++stats.contact_resolves;
+  }
   stats.solve_ms = MsSince(t0);
-  stats.cg_iterations = cg.iterations;
-  stats.cg_relative_residual = cg.relative_residual;
+  stats.cg_iterations = cg_total;
+  stats.cg_relative_residual = last.relative_residual;
   stats.refactored = refactored_;
   stats.factor_ms = factor_ms_;
 

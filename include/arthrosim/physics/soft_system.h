@@ -70,6 +70,9 @@ struct SoftStepStats {
   std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
   std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
   std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
+  /// Extra solves for contacts that were apart at the start of the step and crossed within it
+  /// (cg_iterations counts all solves).
+  int contact_resolves = 0;
 };
 
 /// Energies of the soft bodies, micro-joules (mN mm = kg mm^2/s^2).
@@ -203,6 +206,12 @@ class SoftSystem {
   void BuildPointTerms(const Model& model, const Eigen::VectorXd& x, ContactSet* contacts,
                        SpringSet* springs, bool add_forces);
   void BuildPreconditioner(double h);
+  // After a solve (dv_): contacts apart at the start of the step (force_n == 0) whose point
+  // ends the step behind its plane get their term, force and right-hand side (b_) share, and
+  // force_n = -1. True if any did.
+  bool ActivateCrossedContacts(double h, ContactSet* contacts);
+  // Re-solves per step for contacts crossed within it (see Step).
+  static constexpr int kCrossRounds = 2;
   void BuildBlockJacobi(double h);
   void AnalyzeFactor();
   void FactorRestSystem(double h);
