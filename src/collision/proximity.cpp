@@ -203,7 +203,7 @@ TriangleFrame MakeFrame(const Vec3& a, const Vec3& b, const Vec3& c) {
   f.d11 = l2[2];
   f.inv_denom = 1.0 / (f.d00 * f.d11 - f.d01 * f.d01);
   for (int k = 0; k < 3; ++k) f.height2[k] = f.n2 / l2[k];
-  f.slack = 1e-9 * (1.0 + a.cwiseAbs().maxCoeff() + max2);
+  f.slack = 1e-9 * (1.0 + a.cwiseAbs().maxCoeff() + std::sqrt(max2));
   f.usable = std::isfinite(f.inv_denom) && std::isfinite(f.slack);
   return f;
 }
@@ -239,15 +239,14 @@ bool Beyond(const TriangleFrame& f, double lower2, double dist) {
   return lower2 > lim * lim;
 }
 
-// Bounds of the convex hull of n points (a segment's or a triangle's vertices) against a usable
-// frame (the same quantities are affine, so the vertices bound them).
-SegmentBounds BoundPoints(const TriangleFrame& f, const Vec3* const* pts, int n) {
+SegmentBounds BoundSegment(const TriangleFrame& f, const Vec3& p0, const Vec3& p1) {
   SegmentBounds b;
   b.f = &f;
-  double hmin = 0, hmax = 0;
-  for (int i = 0; i < n; ++i) {
-    const Vec3 ap = *pts[i] - f.a;
-    const double h = f.n.dot(ap);
+  const Vec3* ends[2] = {&p0, &p1};
+  double h[2];
+  for (int i = 0; i < 2; ++i) {
+    const Vec3 ap = *ends[i] - f.a;
+    h[i] = f.n.dot(ap);
     const double d20 = ap.dot(f.ab), d21 = ap.dot(f.ac);
     const double v = (f.d11 * d20 - f.d01 * d21) * f.inv_denom;  // weight of b
     const double w = (f.d00 * d21 - f.d01 * d20) * f.inv_denom;  // weight of c
@@ -257,17 +256,11 @@ SegmentBounds BoundPoints(const TriangleFrame& f, const Vec3* const* pts, int n)
       b.side_min[k] = i == 0 ? side[k] : std::min(b.side_min[k], side[k]);
       b.side_max[k] = i == 0 ? side[k] : std::max(b.side_max[k], side[k]);
     }
-    hmin = i == 0 ? h : std::min(hmin, h);
-    hmax = i == 0 ? h : std::max(hmax, h);
   }
-  if (hmin > 0) b.plane2 = hmin * hmin / f.n2;
-  if (hmax < 0) b.plane2 = hmax * hmax / f.n2;
+  if ((h[0] > 0 && h[1] > 0) || (h[0] < 0 && h[1] < 0)) {
+    b.plane2 = std::min(h[0] * h[0], h[1] * h[1]) / f.n2;
+  }
   return b;
-}
-
-SegmentBounds BoundSegment(const TriangleFrame& f, const Vec3& p0, const Vec3& p1) {
-  const Vec3* pts[2] = {&p0, &p1};
-  return BoundPoints(f, pts, 2);
 }
 
 // SegmentTriangle, or false without the exact test when `prune_dist` >= 0 and the triangle is
