@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "arthrosim/core/units.h"
+#include "arthrosim/instruments/instruments.h"
 #include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/tool_kinematics.h"
 
@@ -78,6 +79,15 @@ void AdvanceTime(const Model& model, State* state) {
   state->time_s = static_cast<double>(state->step) * model.options.dt_s;
 }
 
+// Instrument actions: what each instrument does while its control is applied (cut, shave,
+// drill, grasp, suture, tie), with this step's solved contacts. Edits take effect next step.
+void ApplyInstrumentActions(const Model& model, Workspace* ws, State* state) {
+  const auto t0 = Clock::now();
+  const instruments::StepContext context{&ws->contacts, &ws->collision, &ws->soft};
+  instruments::ApplyInstruments(model, context, state, &ws->instrument_scratch);
+  ws->timings.instruments_ms = MsSince(t0);
+}
+
 }  // namespace
 
 void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
@@ -101,6 +111,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   AccumulateToolForces(*ws, state);
   AdvanceTime(model, state);
   RecordContactEvents(model, ws, state);
+  ApplyInstrumentActions(model, ws, state);
   ws->timings.total_ms = MsSince(t0);
 }
 

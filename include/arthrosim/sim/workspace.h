@@ -5,6 +5,7 @@
 #include "arthrosim/collision/contact_generation.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/instruments/instruments.h"
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/soft_system.h"
 #include "arthrosim/physics/thread_chain.h"
@@ -17,6 +18,7 @@ struct StepTimings {
   double collision_ms = 0;
   double soft_ms = 0;
   double thread_ms = 0;
+  double instruments_ms = 0;
   double total_ms = 0;
   physics::SoftStepStats soft;
   physics::ThreadStepStats thread;
@@ -30,6 +32,7 @@ struct Workspace {
   collision::CollisionOutput contacts;           ///< this step's contacts (collision -> solvers)
   collision::ContactEventScratch event_scratch;  ///< work lists of the contact events stage
   physics::SpringSet springs;                    ///< runtime constraints, one per deformable end
+  instruments::InstrumentScratch instrument_scratch;  ///< work lists of the instrument actions
   StepTimings timings;
 };
 
