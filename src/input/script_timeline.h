@@ -103,6 +103,9 @@ struct Timeline {
 Timeline BuildTimeline(const std::string& yaml_text, const std::string& file, const Model& model,
                        const ScriptOptions& options);
 
+/// Tip position of a hand at time t, mm (no tremor, no force-push excursion).
+Vec3 HandTipAt(const Timeline& tl, int slot, double t);
+
 /// Deterministic uniform [0, 1) draw for (seed, stream, index, purpose).
 double NoiseUniform(std::uint64_t seed, int stream, int index, int purpose);
 
