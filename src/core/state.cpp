@@ -46,6 +46,8 @@ void VisitState(const State& s, V&& v) {
     v(b.tet_alive);
     v(b.dv_warm);
     v(b.x_factor);
+    v(b.removed_volume_mm3);
+    v(b.cauterized);
   }
   for (const BoneState& b : s.bones) {
     v(b.surface.nodes);

@@ -45,7 +45,9 @@ struct Blocks {
 
 struct BodyIn {
   h5::Dataset positions, node_count_ds, element_count_ds, element_alive, elements;
+  h5::Dataset removed_ds, cauterized_ds;  // absent in files written before the operations
   std::vector<std::int64_t> node_count, element_count;
+  std::vector<double> removed;
   std::vector<mesh::Tet> tets;  // all rows of /elements
   Blocks alive_elements;
 };
@@ -124,6 +126,8 @@ void RunReader::Impl::Open() {
     b.element_alive = g.OpenDataset("element_alive", kChunkCache);
     b.elements = g.OpenDataset("elements", kChunkCache);
     b.alive_elements.Open(g, "alive_elements");
+    if (g.Exists("removed_volume")) b.removed_ds = g.OpenDataset("removed_volume");
+    if (g.Exists("cauterized")) b.cauterized_ds = g.OpenDataset("cauterized", kChunkCache);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kThreads)) {
     info.threads.push_back(layout::LeafName(g.path()));
@@ -161,6 +165,9 @@ void RunReader::Impl::Open() {
     for (h5::Dataset* d : {&b.positions, &b.node_count_ds, &b.element_count_ds, &b.element_alive,
                            &b.alive_elements.offset_ds, &b.alive_elements.count_ds}) {
       frame(*d);
+    }
+    for (h5::Dataset* d : {&b.removed_ds, &b.cauterized_ds}) {
+      if (d->valid()) frame(*d);
     }
   }
   for (ThreadIn& t : threads) {
@@ -207,6 +214,7 @@ void RunReader::Impl::Load() {
     std::copy(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(4 * b.tets.size()),
               b.tets.empty() ? nullptr : b.tets[0].data());
     b.alive_elements.Load();
+    if (b.removed_ds.valid()) b.removed = b.removed_ds.ReadAll<double>();
   }
   for (ThreadIn& t : threads) t.node_count = t.node_count_ds.ReadAll<std::int64_t>();
   for (BoneIn& b : bones) {
@@ -288,6 +296,14 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     s.tets.assign(b.tets.begin(), b.tets.begin() + static_cast<std::ptrdiff_t>(e));
     s.tet_alive.resize(e);
     b.element_alive.Read({th, 0}, {1, e}, H5T_NATIVE_UINT8, s.tet_alive.data());
+    s.removed_volume_mm3 = b.removed.empty() ? 0.0 : b.removed[t];
+    s.cauterized.clear();
+    if (b.cauterized_ds.valid()) {
+      // Stored per node with zero padding; State keeps it empty while nothing is marked.
+      std::vector<std::uint8_t> marks(n);
+      b.cauterized_ds.Read({th, 0}, {1, n}, H5T_NATIVE_UINT8, marks.data());
+      if (std::find(marks.begin(), marks.end(), 1) != marks.end()) s.cauterized = std::move(marks);
+    }
     s.v.resize(3, 0);
     s.x_rest.resize(3, 0);
     s.dv_warm.resize(3, 0);

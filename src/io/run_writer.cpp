@@ -65,6 +65,7 @@ void CheckNames(const Model& model, const std::string& field, const Items& items
 
 struct BodyOut {
   FrameSeries positions, node_count, element_count, element_alive;
+  FrameSeries removed_volume, cauterized;  // operations: cut/shaved volume, cautery marks
   h5::Dataset elements;
   std::vector<mesh::Tet> written;  // rows of /elements so far (append-only check)
   BlockSeries alive_elements, xdmf_points;
@@ -120,6 +121,7 @@ struct RunWriter::Impl {
 
   // Scratch buffers reused every frame.
   std::vector<std::int32_t> ints;
+  std::vector<std::uint8_t> marks;
   std::vector<float> floats;
   std::vector<layout::ConstraintRecord> records;
   std::vector<layout::ToolContactRecord> contact_records;
@@ -197,6 +199,9 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     spec.deflate = z;
     b.elements = g.CreateDataset("elements", H5T_STD_I32LE, spec);
     b.alive_elements.Create(g, "alive_elements", H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z);
+    b.removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr,
+                            z);
+    b.cauterized.Create(g, "cauterized", H5T_STD_U8LE, H5T_NATIVE_UINT8, {n}, {1}, &kZeroU8, z);
     b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
   }
 
@@ -275,6 +280,7 @@ template <class F>
 void RunWriter::Impl::ForEachSeries(F f) {
   for (BodyOut& b : bodies) {
     f(b.positions), f(b.node_count), f(b.element_count), f(b.element_alive);
+    f(b.removed_volume), f(b.cauterized);
     f(b.alive_elements), f(b.xdmf_points);
   }
   for (ThreadOut& t : threads) {
@@ -378,6 +384,11 @@ void RunWriter::Impl::WriteFrame(const State& s) {
     }
     b.element_count.Push(static_cast<std::int64_t>(e));
     b.element_alive.Write({e}, sb.tet_alive.data());
+    b.removed_volume.Push(sb.removed_volume_mm3);
+    marks.assign(n, 0);  // per node; nodes past the State's vector are unmarked
+    std::copy_n(sb.cauterized.begin(), std::min<std::size_t>(sb.cauterized.size(), n),
+                marks.begin());
+    b.cauterized.Write({n}, marks.data());
     ints.clear();
     for (std::size_t k = 0; k < e; ++k) {
       if (sb.tet_alive[k] != 0) ints.insert(ints.end(), sb.tets[k].begin(), sb.tets[k].end());

@@ -234,6 +234,57 @@ void ReadContact(const Section& root, Model* m) {
   c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
 }
 
+// A number in [lo, hi] (inclusive ends as stated in the message).
+double InRange(const Section& s, const char* key, double fallback, double lo, double hi,
+               const char* expected) {
+  const double v = s.Number(key, fallback);
+  if (v < lo || v > hi) Fail(s.ctx(), s.Get(key), s.Field(key), std::string("must be ") + expected);
+  return v;
+}
+
+void ReadSoftShaving(const Section& ops, const char* name, SoftShavingOptions* o) {
+  if (!ops.Has(name)) return;
+  Section s(ops.ctx(), ops.Get(name), ops.Field(name),
+            {"rate", "reach", "smoothing", "min_volume_fraction"});
+  o->rate_mm_s = s.Positive("rate", o->rate_mm_s);
+  o->reach_mm = s.NonNegative("reach", o->reach_mm);
+  o->smoothing = InRange(s, "smoothing", o->smoothing, 0, 1, "in [0, 1]");
+  o->min_volume_fraction =
+      InRange(s, "min_volume_fraction", o->min_volume_fraction, 0, 0.99, "in [0, 0.99]");
+}
+
+// Optional `operations:` section: one sub-map per operation (docs/operations.md).
+void ReadOperations(const Section& root, Model* m) {
+  if (!root.Has("operations")) return;
+  OperationOptions& o = m->operations;
+  Section ops(root.ctx(), root.Get("operations"), "operations",
+              {"scissors", "cutter", "shaver", "electrocautery"});
+  if (ops.Has("scissors")) {
+    Section s(root.ctx(), ops.Get("scissors"), ops.Field("scissors"),
+              {"mode", "snap_fraction", "min_jaw_step"});
+    const std::string mode = s.String("mode", "remove");
+    if (mode == "remove") {
+      o.scissors.mode = CutMode::kRemove;
+    } else if (mode == "split") {
+      o.scissors.mode = CutMode::kSplit;
+    } else {
+      Fail(root.ctx(), s.Get("mode"), s.Field("mode"),
+           "expected remove or split, got '" + mode + "'");
+    }
+    o.scissors.snap_fraction =
+        InRange(s, "snap_fraction", o.scissors.snap_fraction, 0, 0.49, "in [0, 0.49]");
+    o.scissors.min_jaw_step =
+        InRange(s, "min_jaw_step", o.scissors.min_jaw_step, 0, 1, "in [0, 1]");
+  }
+  if (ops.Has("cutter")) {
+    Section s(root.ctx(), ops.Get("cutter"), ops.Field("cutter"), {"reach", "cut_at_jaw"});
+    o.cutter.reach_mm = s.Positive("reach", o.cutter.reach_mm);
+    o.cutter.cut_at_jaw = InRange(s, "cut_at_jaw", o.cutter.cut_at_jaw, 0.01, 1, "in [0.01, 1]");
+  }
+  ReadSoftShaving(ops, "shaver", &o.shaver);
+  ReadSoftShaving(ops, "electrocautery", &o.electrocautery);
+}
+
 void ReadMaterials(const Section& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
   if (!materials.IsMap())
@@ -542,9 +593,10 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
     throw InputError(path, e.mark.line + 1, "", "YAML syntax error: " + e.msg);
   }
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
-  Section root(ctx, doc, "",
-               {"name", "seed", "time", "gravity", "solver", "output", "contact", "materials",
-                "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
+  Section root(
+      ctx, doc, "",
+      {"name", "seed", "time", "gravity", "solver", "output", "contact", "operations", "materials",
+       "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
   Model m;
   m.scenario_path = path;
   m.scenario_text = text;
@@ -552,6 +604,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   m.name = root.String("name");
   ReadTimeAndSolver(root, &m);
   ReadContact(root, &m);
+  ReadOperations(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
   ReadBodies(root, &m, &pending_fixed);

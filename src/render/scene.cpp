@@ -86,6 +86,9 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
     mesh.vertices.resize(topo->nodes.size());
     for (std::size_t v = 0; v < topo->nodes.size(); ++v) {
       mesh.vertices[v] = MakeVertex(s.x.col(topo->nodes[v]));
+      // electrocautery marks (docs/operations.md): whitened, coagulated tissue (shader pattern 0)
+      const auto node = static_cast<std::size_t>(topo->nodes[v]);
+      if (node < s.cauterized.size() && s.cauterized[node] != 0) mesh.vertices[v].rough = 1.0f;
     }
     mesh.indices = topo->indices;
     mesh.name = model.soft_bodies[i].name;
@@ -189,7 +192,6 @@ void AppendTools(const Model& model, const State& state, Scene* scene) {
     metal.material = Make(0.70f, 0.72f, 0.75f, 0.9f, 60.0f, 1.0f, 0);
     dark.material = Make(0.08f, 0.08f, 0.09f, 0.4f, 30.0f, 0.0f, 0);
     AppendInstrument(im, tool.jaw, tool.pose, &metal, &dark);
-    // electrocautery-marked areas would be tinted here once State carries a cautery mask
     scene->meshes.push_back(std::move(metal));
     if (!dark.indices.empty()) scene->meshes.push_back(std::move(dark));
 

@@ -26,7 +26,7 @@ void main() {
 // Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
 // fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
 // overview: a headlight without fall-off (u_ref2 = 0). PATTERN (a #define put in front of this
-// body, one program per pattern): 0 plain, 1 braided suture, 2 bone (uv.x = albedo grain factor;
+// body, one program per pattern): 0 plain (rough > 0: cauterised tissue), 1 braided suture, 2 bone (uv.x = albedo grain factor;
 // procedural pits only where burred). One program per pattern because llvmpipe runs both sides
 // of a branch under a lane mask: a runtime pattern switch shaded every fragment with the noise.
 inline constexpr const char* kMeshFragmentBody = R"(
@@ -69,7 +69,13 @@ void main() {
   if (dot(n, view) < 0.0) n = -n;  // two-sided: cut faces, thin blades, open tubes
   vec3 albedo = u_base;
   float spec = u_spec;
-#if PATTERN == 1
+#if PATTERN == 0
+  // soft tissue marked by the electrocautery (rough = 1 per vertex): whitened, dull
+  if (v_rough > 0.0) {
+    albedo = mix(albedo, vec3(0.86, 0.80, 0.70), 0.85 * v_rough);
+    spec *= 1.0 - 0.7 * v_rough;
+  }
+#elif PATTERN == 1
   // braid: two helices of white tracer over the blue
   float a = fract(v_uv.x * 0.5 + v_uv.y * 2.0);
   float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);

@@ -81,9 +81,10 @@ void AdvanceTime(const Model& model, State* state) {
 
 // Instrument actions: what each instrument does while its control is applied (cut, shave,
 // drill, grasp, suture, tie), with this step's solved contacts. Edits take effect next step.
-void ApplyInstrumentActions(const Model& model, Workspace* ws, State* state) {
+void ApplyInstrumentActions(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
+                            Workspace* ws, State* state) {
   const auto t0 = Clock::now();
-  const instruments::StepContext context{&ws->contacts, &ws->collision, &ws->soft};
+  const instruments::StepContext context{&ws->contacts, &ws->collision, &ws->soft, &prev_tools};
   instruments::ApplyInstruments(model, context, state, &ws->instrument_scratch);
   ws->timings.instruments_ms = MsSince(t0);
 }
@@ -111,7 +112,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   AccumulateToolForces(*ws, state);
   AdvanceTime(model, state);
   RecordContactEvents(model, ws, state);
-  ApplyInstrumentActions(model, ws, state);
+  ApplyInstrumentActions(model, prev_tools, ws, state);
   ws->timings.total_ms = MsSince(t0);
 }
 

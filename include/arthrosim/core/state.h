@@ -24,6 +24,12 @@ struct SoftBodyState {
   /// rest positions, missing columns = their rest positions. Set by the solver; kept here so a
   /// restored run rebuilds the same preconditioner and continues bit for bit.
   Points x_factor;
+  /// Rest volume taken away by cutting and shaving so far, mm^3 (sum of removed tets' rest
+  /// volumes plus the rest volume shaved off surviving tets).
+  double removed_volume_mm3 = 0;
+  /// Per node: 1 = surface marked by the electrocautery. Empty or shorter than the node count
+  /// (nodes appended later) means 0 for the missing nodes.
+  std::vector<std::uint8_t> cauterized;
 };
 
 /// Bone surface state (reshaped by burr and awl).

@@ -11,10 +11,12 @@
 // One file per operation in src/instruments/, each a function of
 // (Model, slot, this step's context, State*, scratch) registered in the dispatch table of
 // instruments.cpp by InstrumentKind.
+#include <array>
 #include <cstdint>
 #include <vector>
 
 #include "arthrosim/collision/contact_generation.h"
+#include "arthrosim/collision/tet_query.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 #include "arthrosim/physics/soft_system.h"
@@ -27,13 +29,16 @@ struct StepContext {
   const collision::CollisionOutput* contacts = nullptr;
   const collision::CollisionWorld* world = nullptr;
   physics::SoftSystem* soft = nullptr;  ///< topology edits (RemoveTets, SplitTet, ...) go here
+  /// The tool slots as they were before this step's commands (jaw closing = jaw grew).
+  const std::array<ToolState, kToolSlots>* prev_tools = nullptr;
 };
 
 /// Work lists the operations reuse from step to step (Workspace; never part of State).
 struct InstrumentScratch {
-  std::vector<std::int32_t> tets;   ///< element indices an operation selected
-  std::vector<std::int32_t> nodes;  ///< node indices an operation selected
-  Points points;                    ///< 3 x N positions an operation computed
+  std::vector<std::int32_t> tets;             ///< element indices an operation selected
+  std::vector<std::int32_t> nodes;            ///< node indices an operation selected
+  Points points;                              ///< 3 x N positions an operation computed
+  std::vector<collision::TetTree> tet_trees;  ///< per soft body: element tree for blade cuts
 };
 
 /// Control state of a tool slot as the operations read it.

@@ -1,0 +1,431 @@
+#include "arthrosim/instruments/cutting.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "arthrosim/core/parallel.h"
+#include "arthrosim/physics/constraints.h"
+#include "arthrosim/sim/step.h"
+#include "arthrosim/sim/workspace.h"
+#include "op_scene.h"
+
+namespace arthrosim::instruments {
+namespace {
+
+using testing::AliveComponents;
+using testing::AliveRestVolume;
+using testing::DetailInt;
+using testing::DetailNumber;
+using testing::EventsOf;
+using testing::GridMesh;
+using testing::GridModel;
+using testing::ToolInput;
+
+// Independent reference for "the triangle crosses the tet": clip the triangle by the tet's four
+// half-spaces and see whether anything is left.
+bool Crosses(const std::array<Vec3, 3>& tri, const std::array<Vec3, 4>& p) {
+  std::vector<Vec3> poly(tri.begin(), tri.end());
+  const Vec3 centroid = 0.25 * (p[0] + p[1] + p[2] + p[3]);
+  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  for (const auto& f : kFaces) {
+    Vec3 n = (p[f[1]] - p[f[0]]).cross(p[f[2]] - p[f[0]]);
+    if (n.dot(centroid - p[f[0]]) < 0) n = -n;
+    const double off = n.dot(p[f[0]]);
+    std::vector<Vec3> out;
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      const Vec3& s = poly[i];
+      const Vec3& e = poly[(i + 1) % poly.size()];
+      const double ds = n.dot(s) - off, de = n.dot(e) - off;
+      if (ds >= 0) out.push_back(s);
+      if ((ds >= 0) != (de >= 0)) out.push_back(s + (e - s) * (ds / (ds - de)));
+    }
+    poly = out;
+    if (poly.empty()) return false;
+  }
+  return true;
+}
+
+std::array<Vec3, 4> TetAt(const SoftBodyState& b, std::size_t t) {
+  const mesh::Tet& e = b.tets[t];
+  return {b.x.col(e[0]), b.x.col(e[1]), b.x.col(e[2]), b.x.col(e[3])};
+}
+
+// A bar along x (20 x 3 x 3 mm, 1 mm cells) centred on the x axis, fixed at both ends: a biceps
+// stand-in. The scissors come from above (forward = -z) with the blades opening along y, their
+// plane x = 10.5 across the bar, tip 2 mm below the bar's axis: the bar's cross-section lies in
+// the wedge between the open blades, touching them near the hinge.
+struct BarScene {
+  Model model = GridModel(GridMesh(Vec3(0, -1.5, -1.5), {20, 3, 3}, 1.0),
+                          [](const Vec3& p) { return p.x() < 0.01 || p.x() > 19.99; });
+  InputFrame Scissors(double jaw) const {
+    return ToolInput(model, "scissors", Vec3(10.5, 0, -2.0), Vec3(0, 1, 0), Vec3(0, 0, -1), jaw, 0);
+  }
+};
+
+TEST(ScissorsCut, RemovesOnlyTetsTheBladeTriangleCrossesAndCutsTheBarInTwo) {
+  BarScene scene;
+  const Model& m = scene.model;
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  sim::Step(m, scene.Scissors(0.0), &s, &ws);  // open, in place: no cut
+  EXPECT_TRUE(EventsOf(s, "cut").empty());
+  ASSERT_EQ(AliveComponents(s, 0), 1);
+  const double v0 = AliveRestVolume(s, 0);
+  const std::vector<std::uint8_t> alive_before = s.soft_bodies[0].tet_alive;
+  sim::Step(m, scene.Scissors(0.1), &s, &ws);  // the jaw starts to close
+  const std::vector<Event> cuts = EventsOf(s, "cut");
+  ASSERT_EQ(cuts.size(), 1u);
+  std::array<Vec3, 3> tri;
+  ASSERT_TRUE(BladeTriangle(m, s.tools[0], &tri));
+  const SoftBodyState& b = s.soft_bodies[0];
+  int removed = 0;
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!alive_before[t]) continue;
+    const bool crosses = Crosses(tri, TetAt(b, t));
+    // Removed exactly when the blade triangle crosses it (at the positions of the cut).
+    EXPECT_EQ(b.tet_alive[t] == 0, crosses) << "tet " << t;
+    removed += b.tet_alive[t] == 0 ? 1 : 0;
+  }
+  EXPECT_GT(removed, 0);
+  EXPECT_EQ(DetailInt(cuts[0].detail, "tets"), removed);
+  const double volume = DetailNumber(cuts[0].detail, "volume_mm3");
+  EXPECT_NEAR(volume, v0 - AliveRestVolume(s, 0), 1e-9 * v0);
+  EXPECT_NEAR(b.removed_volume_mm3, volume, 1e-12);
+  // The cut is thin (one layer around the plane x = 10.5) and goes through the whole bar.
+  EXPECT_LT(volume, 2.0 * 9.0);
+  EXPECT_EQ(AliveComponents(s, 0), 2);
+  // The collision surface follows at the next step: the boundary of the alive tets, now with
+  // the cut faces.
+  const std::size_t tris_before = ws.collision.soft[0].surface.tris.size();
+  sim::Step(m, scene.Scissors(0.1), &s, &ws);
+  EXPECT_EQ(ws.collision.soft[0].surface.tris,
+            collision::BoundaryTriangles(s.soft_bodies[0].tets, s.soft_bodies[0].tet_alive));
+  EXPECT_GT(ws.collision.soft[0].surface.tris.size(), tris_before);
+}
+
+TEST(ScissorsCut, NothingHappensWithoutClosingOrWithoutTouching) {
+  BarScene scene;
+  const Model& m = scene.model;
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  // The jaw held at 0.5 (not closing) in place: contacts but no cut.
+  for (int k = 0; k < 5; ++k) sim::Step(m, scene.Scissors(0.5), &s, &ws);
+  EXPECT_EQ(AliveRestVolume(s, 0), AliveRestVolume(MakeInitialState(m), 0));
+  // Closing far from the bar: no contact, no cut.
+  InputFrame away =
+      ToolInput(m, "scissors", Vec3(10.5, 0, 30), Vec3(0, 1, 0), Vec3(0, 0, -1), 0.0, 0);
+  State s2 = MakeInitialState(m);
+  sim::Workspace ws2;
+  sim::BuildWorkspace(m, s2, &ws2);
+  sim::Step(m, away, &s2, &ws2);
+  away.tools[0].jaw = 0.5;
+  sim::Step(m, away, &s2, &ws2);
+  EXPECT_TRUE(EventsOf(s2, "cut").empty());
+  for (std::uint8_t a : s2.soft_bodies[0].tet_alive) ASSERT_EQ(a, 1);
+}
+
+TEST(ScissorsCut, TheTwoStumpsMoveIndependently) {
+  // The bar cut in the middle hangs as two cantilevers: its cut ends sag far more than the
+  // middle of the intact bar does under the same gravity.
+  BarScene scene;
+  const Model& m = scene.model;
+  auto run = [&](bool cut) {
+    State s = MakeInitialState(m);
+    sim::Workspace ws;
+    sim::BuildWorkspace(m, s, &ws);
+    sim::Step(m, scene.Scissors(0.0), &s, &ws);
+    if (cut) sim::Step(m, scene.Scissors(0.1), &s, &ws);
+    InputFrame idle;
+    idle.camera.pose = m.camera.initial_pose;
+    for (int k = 0; k < 40; ++k) sim::Step(m, idle, &s, &ws);
+    // Lowest z of the nodes near the middle that still have an element.
+    double low = 0;
+    const SoftBodyState& b = s.soft_bodies[0];
+    for (std::size_t t = 0; t < b.tets.size(); ++t) {
+      if (!b.tet_alive[t]) continue;
+      for (std::int32_t n : b.tets[t]) {
+        if (std::abs(b.x(0, n) - 10.5) < 2.0) low = std::min(low, b.x(2, n) + 1.5);
+      }
+    }
+    EXPECT_TRUE(b.x.allFinite());
+    return low;
+  };
+  const double intact = run(false), cut = run(true);
+  EXPECT_LT(cut, 3.0 * intact);  // both negative: the cut ends drop at least 3x as far
+  EXPECT_LT(cut, -0.05);
+}
+
+// A sheet in z = [-0.5, 0.5] (60 x 8 x 1 mm) held along its long sides; the scissors advance
+// along +x with the blades opening along z (blade plane y = 0.2), closing a little every step:
+// paper-cutting, at least 100 steps of continuous cutting.
+TEST(ScissorsCut, ProgressiveCuttingOverOneHundredTwentySteps) {
+  const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {60, 8, 1}, 1.0),
+                            [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  const int steps = 120;
+  int cut_steps = 0;
+  double front = -1;  // largest x reached by a removed tet's centroid
+  for (int k = 0; k <= steps; ++k) {
+    const double tip_x = 3.0 + 0.4 * k;
+    const InputFrame in = ToolInput(m, "scissors", Vec3(tip_x, 0.2, 0), Vec3(0, 0, 1),
+                                    Vec3(1, 0, 0), 0.9 * k / steps, 0);
+    sim::Step(m, in, &s, &ws);
+    ASSERT_TRUE(s.soft_bodies[0].x.allFinite()) << "step " << k;
+    for (const Event& e : EventsOf(s, "cut")) {
+      ++cut_steps;
+      EXPECT_GE(DetailInt(e.detail, "tets"), 1);
+      front = std::max(front, e.position_mm.x());
+    }
+    // The cut keeps up with the blade tips (within two cells behind them).
+    if (k > 1) EXPECT_GT(front, tip_x - 2.0) << "step " << k;
+  }
+  EXPECT_GE(cut_steps, 100);
+  EXPECT_GT(front, 40.0);
+  // Every remaining element positive at rest.
+  const SoftBodyState& b = s.soft_bodies[0];
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive[t]) continue;
+    const mesh::Tet& e = b.tets[t];
+    const Vec3 a = b.x_rest.col(e[0]);
+    EXPECT_GT((b.x_rest.col(e[1]) - a).dot((b.x_rest.col(e[2]) - a).cross(b.x_rest.col(e[3]) - a)),
+              0);
+  }
+}
+
+State RunProgressive(int threads) {
+  SetThreadCount(threads);
+  const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {30, 8, 1}, 1.0),
+                            [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  for (int k = 0; k <= 40; ++k) {
+    sim::Step(m,
+              ToolInput(m, "scissors", Vec3(3.0 + 0.4 * k, 0.2, 0), Vec3(0, 0, 1), Vec3(1, 0, 0),
+                        0.02 * k, 0),
+              &s, &ws);
+  }
+  SetThreadCount(1);
+  return s;
+}
+
+TEST(ScissorsCut, BitIdenticalWithOneAndTwoThreads) {
+  const State a = RunProgressive(1), b = RunProgressive(2), c = RunProgressive(1);
+  EXPECT_TRUE(BitwiseEqual(a, c));
+  EXPECT_TRUE(BitwiseEqual(a, b));
+  EXPECT_GT(a.soft_bodies[0].removed_volume_mm3, 0);
+}
+
+// ---- Split mode -------------------------------------------------------------------------
+
+// The quality every piece of a split keeps, stated in docs/operations.md: radius ratio >= 0.02
+// on meshes of unit-cube Kuhn tets (radius ratio 0.72), with snap_fraction 0.1.
+constexpr double kMinSplitQuality = 0.02;
+
+void ExpectValidMesh(const SoftBodyState& b) {
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive[t]) continue;
+    const mesh::Tet& e = b.tets[t];
+    for (const Points* x : {&b.x_rest, &b.x}) {
+      const Vec3 a = x->col(e[0]);
+      ASSERT_GT((x->col(e[1]) - a).dot((x->col(e[2]) - a).cross(x->col(e[3]) - a)), 0)
+          << "tet " << t;
+    }
+  }
+}
+
+TEST(ScissorsSplit, CutsTheBarInTwoConservingVolumeWithValidElements) {
+  BarScene scene;
+  scene.model.operations.scissors.mode = CutMode::kSplit;
+  const Model& m = scene.model;
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  sim::Step(m, scene.Scissors(0.0), &s, &ws);
+  const double v0 = AliveRestVolume(s, 0);
+  const std::size_t tets0 = s.soft_bodies[0].tets.size();
+  sim::Step(m, scene.Scissors(0.1), &s, &ws);
+  const std::vector<Event> cuts = EventsOf(s, "cut");
+  ASSERT_EQ(cuts.size(), 1u);
+  EXPECT_NE(cuts[0].detail.find("mode=split"), std::string::npos);
+  const SoftBodyState& b = s.soft_bodies[0];
+  EXPECT_GT(b.tets.size(), tets0);
+  EXPECT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0);
+  EXPECT_EQ(b.removed_volume_mm3, 0);
+  ExpectValidMesh(b);
+  for (std::size_t t = tets0; t < b.tets.size(); ++t) {
+    const mesh::Tet& e = b.tets[t];
+    EXPECT_GE(
+        RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]), b.x_rest.col(e[3])),
+        kMinSplitQuality)
+        << "tet " << t;
+  }
+  EXPECT_EQ(AliveComponents(s, 0), 2);
+  // The pieces hang apart afterwards, still valid.
+  InputFrame idle;
+  idle.camera.pose = m.camera.initial_pose;
+  for (int k = 0; k < 30; ++k) sim::Step(m, idle, &s, &ws);
+  ASSERT_TRUE(s.soft_bodies[0].x.allFinite());
+  EXPECT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0);
+}
+
+TEST(ScissorsSplit, RandomPlanesConserveVolumeAndQuality) {
+  // Planes in every direction through a 4 x 4 x 4 grid: each cut conserves the rest volume to
+  // 1e-9, leaves every element positive and every piece above kMinSplitQuality.
+  Model m = GridModel(GridMesh(Vec3(0, 0, 0), {4, 4, 4}, 1.0), [](const Vec3&) { return false; });
+  std::uint64_t seed = 12345;
+  auto uniform = [&seed] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) / 9007199254740992.0;
+  };
+  double worst = 1;
+  for (int trial = 0; trial < 300; ++trial) {
+    State s = MakeInitialState(m);
+    sim::Workspace ws;
+    sim::BuildWorkspace(m, s, &ws);
+    const Vec3 normal = Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
+    const Vec3 point(0.5 + 3 * uniform(), 0.5 + 3 * uniform(), 0.5 + 3 * uniform());
+    // A triangle in that plane big enough to cover the grid.
+    const Vec3 u = normal.unitOrthogonal(), w = normal.cross(u);
+    const std::array<Vec3, 3> tri{point + 20 * u, point - 10 * u + 17 * w, point - 10 * u - 17 * w};
+    collision::TetTree tree;
+    std::vector<std::int32_t> crossed;
+    TetsCrossedByTriangle(s, 0, tri, &tree, &crossed);
+    const double v0 = AliveRestVolume(s, 0);
+    const std::size_t tets0 = s.soft_bodies[0].tets.size();
+    const SplitResult r = SplitTetsByPlane(m, 0, crossed, point, normal, 0.1, &tree, &ws.soft, &s);
+    const SoftBodyState& b = s.soft_bodies[0];
+    ASSERT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0) << "trial " << trial;
+    ExpectValidMesh(b);
+    for (std::size_t t = tets0; t < b.tets.size(); ++t) {
+      const mesh::Tet& e = b.tets[t];
+      const double q = RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]),
+                                   b.x_rest.col(e[3]));
+      worst = std::min(worst, q);
+      ASSERT_GE(q, kMinSplitQuality) << "trial " << trial << " tet " << t;
+    }
+    if (r.split_tets > 0) EXPECT_GE(r.min_quality, kMinSplitQuality);
+    // The plane cuts the grid through: two pieces unless it only grazed a corner.
+    if (r.split_tets > 0) EXPECT_GE(AliveComponents(s, 0), 2) << "trial " << trial;
+  }
+  std::printf("worst split quality %.4f\n", worst);
+}
+
+TEST(ScissorsSplit, ProgressiveSplitCuttingStaysValid) {
+  Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {40, 8, 1}, 1.0),
+                      [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
+  m.operations.scissors.mode = CutMode::kSplit;
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  const double v0 = AliveRestVolume(s, 0);
+  int cut_steps = 0;
+  for (int k = 0; k <= 100; ++k) {
+    const InputFrame in = ToolInput(m, "scissors", Vec3(3.0 + 0.3 * k, 0.2, 0), Vec3(0, 0, 1),
+                                    Vec3(1, 0, 0), 0.009 * k, 0);
+    sim::Step(m, in, &s, &ws);
+    ASSERT_TRUE(s.soft_bodies[0].x.allFinite()) << "step " << k;
+    cut_steps += EventsOf(s, "cut").empty() ? 0 : 1;
+  }
+  EXPECT_GE(cut_steps, 50);
+  EXPECT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0);
+  ExpectValidMesh(s.soft_bodies[0]);
+}
+
+// ---- Cutter ----------------------------------------------------------------------------
+
+// The small scene's suture runs along x at z = 30 from (0,0,30), 11 nodes 2 mm apart, node 0
+// fixed. The cutter comes from below (forward = +z, tip at z = 32, hinge 8 mm lower), blades
+// opening along y; its blade plane x = 11 crosses segment 5 (nodes 5-6).
+struct CutterScene {
+  Model model = GridModel(GridMesh(Vec3(0, 0, 0), {2, 2, 2}, 1.0),
+                          [](const Vec3& p) { return p.z() < 0.01; });
+  InputFrame Cutter(double jaw) const {
+    return ToolInput(model, "cutter", Vec3(11.0, 0, 32.0), Vec3(0, 1, 0), Vec3(0, 0, 1), jaw, 0);
+  }
+};
+
+State CutOnce(const Model& m, const CutterScene& scene, State s) {
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  sim::Step(m, scene.Cutter(0.8), &s, &ws);
+  EXPECT_TRUE(EventsOf(s, "thread_cut").empty());  // not yet past cut_at_jaw
+  sim::Step(m, scene.Cutter(0.95), &s, &ws);
+  return s;
+}
+
+TEST(ThreadCutter, LeavesExactlyTheBoneSidePart) {
+  CutterScene scene;
+  const Model& m = scene.model;
+  State s0 = MakeInitialState(m);
+  // A grasp on node 8 (free side) and one on node 2 (bone side).
+  for (std::int32_t node : {8, 2}) {
+    SpringConstraint c;
+    c.tag = "grasp";
+    c.a.kind = ConstraintEnd::Kind::kThread;
+    c.a.index = 0;
+    c.a.nodes = {node, -1, -1, -1};
+    c.a.weights = {1, 0, 0, 0};
+    c.b.kind = ConstraintEnd::Kind::kWorld;
+    c.b.offset_mm = s0.threads[0].x.col(node);
+    physics::AddConstraint(&s0, c);
+  }
+  const State s = CutOnce(m, scene, s0);
+  const std::vector<Event> cuts = EventsOf(s, "thread_cut");
+  ASSERT_EQ(cuts.size(), 1u);
+  EXPECT_EQ(DetailInt(cuts[0].detail, "segment"), 5);
+  EXPECT_EQ(DetailInt(cuts[0].detail, "cutting_point"), 6);
+  EXPECT_EQ(DetailInt(cuts[0].detail, "removed_nodes"), 5);
+  for (int n = 0; n < 11; ++n) EXPECT_EQ(s.threads[0].node_alive[n], n <= 5 ? 1 : 0) << n;
+  ASSERT_EQ(s.constraints.size(), 1u);  // the grasp on node 8 went with its node
+  EXPECT_EQ(s.constraints[0].a.nodes[0], 2);
+}
+
+TEST(ThreadCutter, TheBoneSideIsWhereverTheAnchorIs) {
+  CutterScene scene;
+  scene.model.threads[0].fixed_nodes = {10};
+  const State s = CutOnce(scene.model, scene, MakeInitialState(scene.model));
+  ASSERT_EQ(EventsOf(s, "thread_cut").size(), 1u);
+  for (int n = 0; n < 11; ++n) EXPECT_EQ(s.threads[0].node_alive[n], n >= 6 ? 1 : 0) << n;
+}
+
+TEST(ThreadCutter, BothSidesHeldKeepsBothStrands) {
+  CutterScene scene;
+  scene.model.threads[0].fixed_nodes = {0, 10};
+  const State s = CutOnce(scene.model, scene, MakeInitialState(scene.model));
+  ASSERT_EQ(EventsOf(s, "thread_cut").size(), 1u);
+  int dead = 0;
+  for (int n = 0; n < 11; ++n) dead += s.threads[0].node_alive[n] == 0 ? 1 : 0;
+  EXPECT_EQ(dead, 1);
+  EXPECT_EQ(s.threads[0].node_alive[6], 0);
+}
+
+TEST(ThreadCutter, OnlyWhenTheBladesMeetAndOnlyThread) {
+  CutterScene scene;
+  const Model& m = scene.model;
+  State s = MakeInitialState(m);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  // Closing but never past 0.9: no cut.
+  for (double jaw : {0.0, 0.3, 0.6, 0.85, 0.89}) sim::Step(m, scene.Cutter(jaw), &s, &ws);
+  for (std::uint8_t a : s.threads[0].node_alive) EXPECT_EQ(a, 1);
+  // The scissors at the same place cut no thread.
+  State s2 = MakeInitialState(m);
+  sim::Workspace ws2;
+  sim::BuildWorkspace(m, s2, &ws2);
+  InputFrame in = scene.Cutter(0.8);
+  in.tools[0].instrument = m.FindInstrument("scissors");
+  sim::Step(m, in, &s2, &ws2);
+  in.tools[0].jaw = 0.95;
+  sim::Step(m, in, &s2, &ws2);
+  for (std::uint8_t a : s2.threads[0].node_alive) EXPECT_EQ(a, 1);
+}
+
+}  // namespace
+}  // namespace arthrosim::instruments
