@@ -537,7 +537,7 @@ def region_boxes():
             for k, (b, box) in boxes.items()}
 
 
-INSTRUMENTS = [  # name = kind; sizes in mm (clinical.md section 5 and 3.1; [K] where no source)
+INSTRUMENTS = [  # name = kind; sizes in mm (shaver, cannula: Wheeless' Textbook; [K] no source)
     # kind, portal, shaft_diameter, shaft_length, tip_length, tip_radius
     ("scissors", "anterior", 3.5, 150, 8, 1.75),        # biceps tenotomy
     ("cutter", "lateral", 3.5, 150, 6, 1.75),           # suture cutter
@@ -632,13 +632,13 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
     w("output: {every: 1}")
     w("")
     w("materials:")
-    w("  # Passive skeletal muscle at rest: E 25 kPa (clinical.md s4: SWE of the deltoid gives")
+    w("  # Passive skeletal muscle at rest: E 25 kPa (shear-wave elastography of the deltoid:")
     w("  # 15-35 kPa at rest; Bosboom 2001 Ogden mu 15.6 kPa), nu 0.45 (nearly incompressible")
     w("  # while avoiding volumetric locking of linear tets), rho 1060 kg/m3.")
     w("  muscle: {young_modulus: 25000, poisson_ratio: 0.45, density: 1060,")
     w("           rayleigh_mass: 0.1, rayleigh_stiffness: 0.001}")
     w("  # Tendon (supraspinatus; long head of biceps uses the same): linear elastic E 60 MPa, the")
-    w("  # low end of the 60-200 MPa along-fibre range that clinical.md s4 gives for linear models")
+    w("  # low end of the 60-200 MPa along-fibre range of linear models without a toe region")
     w("  # (Cronje et al., fresh tissue with DIC: tendinous layers 59.6-67.1 MPa); nu 0.45, rho 1100.")
     w("  # On these meshes the modulus barely changes the CG cost (scenarios/README.md, Materials).")
     w("  tendon: {young_modulus: 60000000, poisson_ratio: 0.45, density: 1100,")
@@ -657,8 +657,8 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
         w("  - {name: biceps_tendon, kind: soft, mesh: meshes/biceps_tendon.msh, material: tendon,")
         w("     fixed: [biceps_ends_proximal, biceps_ends_distal]}")
     w("  # Two limbs of a double-loaded anchor at anchor_site_1 (0.4 mm either side of it), running")
-    w("  # out toward the lateral portal. No. 2 FiberWire: d 0.55 mm, EA 5 kN, rho 1300 (clinical.md")
-    w("  # s4); 60 nodes over 60 mm.")
+    w("  # out toward the lateral portal. No. 2 FiberWire: d 0.55 mm, EA 5 kN (~5 % elongation at")
+    w("  # failure, Turker 2011), rho 1300; 60 nodes over 60 mm.")
     sut = suture_lines(points)
     for sname in ("suture_a", "suture_b"):
         s, e = sut[sname]
@@ -676,7 +676,7 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
     for pname, p in PORTALS.items():
         w("  - {name: %s, position: %s}" % (pname, vec(p)))
     w("")
-    w("# Sizes, mm: shaver 5.5 mm and cannula 6.5 mm (clinical.md s5, Wheeless); 5.5 mm burr;")
+    w("# Sizes, mm: shaver 5.5 mm and cannula 6.5 mm (Wheeless' Textbook); 5.5 mm burr;")
     w("# graspers, scissors, cutters, retrievers, probes 3.5-5 mm [K].")
     w("instruments:")
     for kind, portal, sd, sl, tl, tr in INSTRUMENTS:
@@ -684,7 +684,7 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
             kind, kind, portal, fmt(sd), fmt(sl)))
         w("     tip_length: %s, tip_radius: %s}" % (fmt(tl), fmt(tr)))
     w("")
-    w("# 4 mm 30-degree arthroscope, 105-degree field of view (clinical.md s5), in the posterior")
+    w("# 4 mm 30-degree arthroscope, 105-degree field of view (Kwak 2019), in the posterior")
     w("# portal, tip in the posterior subacromial space looking at its centre.")
     w("camera: {portal: %s, fov: 105, lens_angle: 30, diameter: 4, near: 1, far: 100," % (
         CAMERA["portal"]))

@@ -388,7 +388,7 @@ void BuildHand(const Parser& ps, const YAML::Node& seq, int slot, const NoiseCtx
     const std::string op = item.begin()->first.as<std::string>();
     const YAML::Node body = item.begin()->second;
     const std::string field = where + "." + op;
-    const int line = LineOf(item);
+    const int line = YamlLine(item);
 
     if (noisy && op != "wait") MaybeHesitate(noise, slot, i, cur, line, &cursor, &out);
     const double t0 = StartTime(ps, body, field, cursor, noisy);

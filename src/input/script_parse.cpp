@@ -25,52 +25,22 @@ double NoiseUniform(std::uint64_t seed, int stream, int index, int purpose) {
   return NextUniform(&s);
 }
 
-namespace {
-
-/// "a, b, c" from the allowed keys.
-template <class It>
-std::string KeyList(It begin, It end) {
-  std::string list;
-  for (It it = begin; it != end; ++it) list += (list.empty() ? "" : ", ") + std::string(*it);
-  return list;
-}
-
-}  // namespace
-
 void Parser::Fail(const YAML::Node& n, const std::string& field, const std::string& msg) const {
-  const int line = n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 0;
-  throw InputError(file_, line, field, msg);
+  reader_.Fail(n, field, msg);
 }
 
 void Parser::CheckKeys(const YAML::Node& map, const std::string& field,
                        std::initializer_list<const char*> allowed) const {
-  CheckKeys(map, field, std::vector<const char*>(allowed));
+  reader_.CheckKeys(map, field, std::vector<const char*>(allowed));
 }
 
 void Parser::CheckKeys(const YAML::Node& map, const std::string& field,
                        const std::vector<const char*>& allowed) const {
-  if (!map.IsMap()) Fail(map, field, "expected a map");
-  for (const auto& kv : map) {
-    const std::string key = kv.first.as<std::string>();
-    if (std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }) ==
-        allowed.end()) {
-      Fail(kv.first, field + "." + key,
-           fmt::format("unknown key '{}'; allowed: {}", key,
-                       KeyList(allowed.begin(), allowed.end())));
-    }
-  }
+  reader_.CheckKeys(map, field, allowed);
 }
 
 double Parser::Num(const YAML::Node& n, const std::string& field) const {
-  if (!n.IsScalar()) Fail(n, field, "expected a number");
-  double v = 0;
-  try {
-    v = n.as<double>();
-  } catch (const YAML::Exception&) {
-    Fail(n, field, fmt::format("expected a number, found '{}'", n.Scalar()));
-  }
-  if (!std::isfinite(v)) Fail(n, field, "expected a finite number");
-  return v;
+  return reader_.Number(n, field);
 }
 
 double Parser::Num(const YAML::Node& map, const char* key, const std::string& field,
@@ -89,13 +59,11 @@ double Parser::Positive(const YAML::Node& map, const char* key, const std::strin
 }
 
 std::string Parser::Str(const YAML::Node& n, const std::string& field) const {
-  if (!n.IsScalar()) Fail(n, field, "expected a string");
-  return n.Scalar();
+  return reader_.Scalar(n, field);
 }
 
 Vec3 Parser::Vec(const YAML::Node& n, const std::string& field) const {
-  if (!n.IsSequence() || n.size() != 3) Fail(n, field, "expected [x, y, z]");
-  return Vec3(Num(n[0], field), Num(n[1], field), Num(n[2], field));
+  return reader_.Vector(n, field);
 }
 
 Easing Parser::Ease(const YAML::Node& map, const std::string& field, Easing def) const {
@@ -137,8 +105,6 @@ Vec3 Parser::Portal(const YAML::Node& n, const std::string& field) const {
   }
   return model_.portals[p].position_mm;
 }
-
-int LineOf(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
 
 double StartTime(const Parser& ps, const YAML::Node& body, const std::string& field, double cursor,
                  bool noisy) {
@@ -309,12 +275,7 @@ void CheckInstrumentOverlap(const Parser& ps, const Timeline& tl) {
 Timeline BuildTimeline(const std::string& yaml_text, const std::string& file, const Model& model,
                        const ScriptOptions& options) {
   if (!(options.dt_s > 0)) throw InputError(file, 0, "dt", "simulation step must be > 0");
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", "YAML syntax: " + e.msg);
-  }
+  const YAML::Node root = ParseYaml(yaml_text, file);
   const Parser ps(file, model);
   if (!root.IsMap()) ps.Fail(root, "", "expected a map at the top level");
   ps.CheckKeys(root, "", {"name", "description", "seed", "noise", "slot0", "slot1", "camera"});

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "arthrosim/core/model.h"
+#include "arthrosim/core/yaml_fields.h"
 #include "script_timeline.h"
 
 namespace arthrosim::input {
@@ -26,7 +27,7 @@ struct NoiseCtx {
 /// Reads script fields strictly; every failure throws InputError(file, line, field, message).
 class Parser {
  public:
-  Parser(const std::string& file, const Model& model) : file_(file), model_(model) {}
+  Parser(const std::string& file, const Model& model) : file_(file), model_(model), reader_(file) {}
 
   /// Throws InputError naming n's line (0 if n has no position), field and msg.
   [[noreturn]] void Fail(const YAML::Node& n, const std::string& field,
@@ -56,10 +57,10 @@ class Parser {
 
   const std::string& file_;
   const Model& model_;
-};
 
-/// 1-based line of a node, 0 if it has none.
-int LineOf(const YAML::Node& n);
+ private:
+  YamlReader reader_;
+};
 
 /// Start time of an action, s: the cursor, or `at` if given (not earlier than the cursor, unless
 /// noisy: hesitations may push a hand past a written start time, which then just starts late).

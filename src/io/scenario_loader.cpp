@@ -12,182 +12,41 @@
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/hash.h"
 #include "arthrosim/core/units.h"
+#include "arthrosim/core/yaml_fields.h"
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/mesh/mesh_validate.h"
+#include "scenario_operations.h"
 
 namespace arthrosim::io {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Where we are while reading: the file for messages and the folder for relative mesh paths.
-struct Context {
-  std::string file;
-  fs::path base_dir;
-};
-
-int LineOf(const YAML::Node& node) { return node.Mark().is_null() ? 0 : node.Mark().line + 1; }
-
-[[noreturn]] void Fail(const Context& ctx, const YAML::Node& node, const std::string& field,
-                       const std::string& message) {
-  throw InputError(ctx.file, LineOf(node), field, message);
-}
-
-std::string FieldPath(const std::string& parent, const std::string& key) {
-  return parent.empty() ? key : parent + "." + key;
-}
-
-// A YAML mapping whose keys are checked against an allowed set, so typos are errors.
-class Section {
- public:
-  Section(const Context& ctx, const YAML::Node& node, std::string field,
-          std::initializer_list<const char*> allowed)
-      : ctx_(ctx), node_(node), field_(std::move(field)) {
-    if (!node.IsMap()) Fail(ctx, node, field_, "expected a mapping");
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      const std::string key = it->first.as<std::string>();
-      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
-        std::string list;
-        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        Fail(ctx, it->first, FieldPath(field_, key), "unknown key (expected one of: " + list + ")");
-      }
-    }
-  }
-
-  bool Has(const char* key) const { return static_cast<bool>(node_[key]); }
-  YAML::Node Get(const char* key) const { return node_[key]; }
-  std::string Field(const char* key) const { return FieldPath(field_, key); }
-  const YAML::Node& node() const { return node_; }
-  const Context& ctx() const { return ctx_; }
-
-  YAML::Node Required(const char* key) const {
-    YAML::Node n = node_[key];
-    if (!n) Fail(ctx_, node_, Field(key), "required field is missing");
-    return n;
-  }
-
-  double Number(const char* key, std::optional<double> fallback = std::nullopt) const {
-    if (!Has(key)) {
-      if (fallback) return *fallback;
-      Required(key);
-    }
-    return ToNumber(Get(key), Field(key));
-  }
-
-  double ToNumber(const YAML::Node& n, const std::string& field) const {
-    if (!n.IsScalar()) Fail(ctx_, n, field, "expected a number");
-    double v = 0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      Fail(ctx_, n, field, "expected a number, got '" + n.Scalar() + "'");
-    }
-    if (!std::isfinite(v)) Fail(ctx_, n, field, "expected a finite number");
-    return v;
-  }
-
-  double Positive(const char* key, std::optional<double> fallback = std::nullopt) const {
-    const double v = Number(key, fallback);
-    if (!(v > 0)) Fail(ctx_, Has(key) ? Get(key) : node_, Field(key), "must be > 0");
-    return v;
-  }
-
-  double NonNegative(const char* key, double fallback) const {
-    const double v = Number(key, fallback);
-    if (v < 0) Fail(ctx_, Get(key), Field(key), "must be >= 0");
-    return v;
-  }
-
-  std::int64_t Integer(const char* key, std::int64_t fallback, std::int64_t min_value) const {
-    if (!Has(key)) return fallback;
-    const YAML::Node n = Get(key);
-    std::int64_t v = 0;
-    try {
-      if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
-      v = n.as<std::int64_t>();
-    } catch (const YAML::Exception&) {
-      Fail(ctx_, n, Field(key), "expected an integer");
-    }
-    if (v < min_value) Fail(ctx_, n, Field(key), "must be >= " + std::to_string(min_value));
-    return v;
-  }
-
-  std::string String(const char* key, std::optional<std::string> fallback = std::nullopt) const {
-    if (!Has(key)) {
-      if (fallback) return *fallback;
-      Required(key);
-    }
-    const YAML::Node n = Get(key);
-    if (!n.IsScalar() || n.Scalar().empty())
-      Fail(ctx_, n, Field(key), "expected a non-empty string");
-    return n.Scalar();
-  }
-
-  bool Bool(const char* key, bool fallback) const {
-    if (!Has(key)) return fallback;
-    try {
-      return Get(key).as<bool>();
-    } catch (const YAML::Exception&) {
-      Fail(ctx_, Get(key), Field(key), "expected true or false");
-    }
-  }
-
-  Vec3 Vector(const char* key, std::optional<Vec3> fallback = std::nullopt) const {
-    if (!Has(key)) {
-      if (fallback) return *fallback;
-      Required(key);
-    }
-    const YAML::Node n = Get(key);
-    if (!n.IsSequence() || n.size() != 3) Fail(ctx_, n, Field(key), "expected [x, y, z]");
-    return Vec3(ToNumber(n[0], Field(key)), ToNumber(n[1], Field(key)), ToNumber(n[2], Field(key)));
-  }
-
- private:
-  const Context& ctx_;
-  YAML::Node node_;
-  std::string field_;
-};
-
-// Iterates a YAML sequence, failing with a clear message if it is not one.
-YAML::Node Sequence(const Section& s, const char* key, bool required) {
-  if (!s.Has(key)) {
-    if (required) s.Required(key);
-    return YAML::Node(YAML::NodeType::Sequence);
-  }
-  YAML::Node n = s.Get(key);
-  if (!n.IsSequence()) Fail(s.ctx(), n, s.Field(key), "expected a list");
-  return n;
-}
-
-std::string Indexed(const std::string& field, std::size_t i) {
-  return field + "[" + std::to_string(i) + "]";
-}
-
-void ReadTimeAndSolver(const Section& root, Model* m) {
+void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   if (root.Has("time")) {
-    Section t(root.ctx(), root.Get("time"), "time", {"dt", "duration"});
+    YamlSection t(root.reader(), root.Get("time"), "time", {"dt", "duration"});
     m->options.dt_s = t.Positive("dt", 0.02);
     m->options.duration_s = t.Positive("duration", 1.0);
   }
   m->options.gravity_mm_s2 = root.Vector("gravity", m->options.gravity_mm_s2);
   m->options.seed = static_cast<std::uint64_t>(root.Integer("seed", 1, 0));
   if (root.Has("solver")) {
-    Section s(root.ctx(), root.Get("solver"), "solver",
-              {"integrator", "cg_max_iterations", "cg_tolerance"});
+    YamlSection s(root.reader(), root.Get("solver"), "solver",
+                  {"integrator", "cg_max_iterations", "cg_tolerance"});
     const std::string integrator = s.String("integrator", "implicit_euler");
     if (integrator == "implicit_euler") {
       m->solver.integrator = Integrator::kImplicitEuler;
     } else if (integrator == "arkode") {
       m->solver.integrator = Integrator::kArkode;
     } else {
-      Fail(root.ctx(), s.Get("integrator"), s.Field("integrator"),
-           "expected implicit_euler or arkode, got '" + integrator + "'");
+      root.reader().Fail(s.Get("integrator"), s.Field("integrator"),
+                         "expected implicit_euler or arkode, got '" + integrator + "'");
     }
     m->solver.cg_max_iterations = static_cast<int>(s.Integer("cg_max_iterations", 100, 1));
     m->solver.cg_tolerance = s.Positive("cg_tolerance", 1e-8);
   }
   if (root.Has("output")) {
-    Section o(root.ctx(), root.Get("output"), "output", {"file", "every", "flush_interval"});
+    YamlSection o(root.reader(), root.Get("output"), "output", {"file", "every", "flush_interval"});
     m->options.output_file = o.String("file", "run.h5");
     m->options.output_every_steps = static_cast<int>(o.Integer("every", 1, 1));
     m->options.flush_interval_s = o.Positive("flush_interval", 1.0);
@@ -195,34 +54,34 @@ void ReadTimeAndSolver(const Section& root, Model* m) {
 }
 
 // Optional `contact:` section: distances in mm, stiffnesses in N/mm (docs/scenario-format.md).
-void ReadContact(const Section& root, Model* m) {
+void ReadContact(const YamlSection& root, Model* m) {
   if (!root.Has("contact")) return;
   ContactOptions& c = m->contact;
-  Section s(root.ctx(), root.Get("contact"), "contact",
-            {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction", "max_substeps",
-             "stiffness"});
+  YamlSection s(root.reader(), root.Get("contact"), "contact",
+                {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction",
+                 "max_substeps", "stiffness"});
   c.alarm_distance_mm = s.Positive("alarm_distance", c.alarm_distance_mm);
   c.contact_distance_mm = s.Positive("contact_distance", c.contact_distance_mm);
   if (!(c.contact_distance_mm < c.alarm_distance_mm)) {
-    Fail(root.ctx(), s.Has("contact_distance") ? s.Get("contact_distance") : s.node(),
-         s.Field("contact_distance"),
-         "must be < contact.alarm_distance (contacts must exist "
-         "before the gap they keep)");
+    root.reader().Fail(s.Has("contact_distance") ? s.Get("contact_distance") : s.node(),
+                       s.Field("contact_distance"),
+                       "must be < contact.alarm_distance (contacts must exist "
+                       "before the gap they keep)");
   }
   c.max_depth_mm = s.Positive("max_depth", c.max_depth_mm);
   c.sweep_fraction = s.Positive("sweep_fraction", c.sweep_fraction);
   if (c.sweep_fraction > 1) {
-    Fail(root.ctx(), s.Get("sweep_fraction"), s.Field("sweep_fraction"),
-         "must be in (0, 1] (a larger sweep substep can tunnel)");
+    root.reader().Fail(s.Get("sweep_fraction"), s.Field("sweep_fraction"),
+                       "must be in (0, 1] (a larger sweep substep can tunnel)");
   }
   c.max_substeps = static_cast<int>(s.Integer("max_substeps", c.max_substeps, 1));
   if (c.max_substeps > 4096) {
-    Fail(root.ctx(), s.Get("max_substeps"), s.Field("max_substeps"), "must be <= 4096");
+    root.reader().Fail(s.Get("max_substeps"), s.Field("max_substeps"), "must be <= 4096");
   }
   if (!s.Has("stiffness")) return;
-  Section k(root.ctx(), s.Get("stiffness"), s.Field("stiffness"),
-            {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue", "bone",
-             "tool_bone"});
+  YamlSection k(root.reader(), s.Get("stiffness"), s.Field("stiffness"),
+                {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue",
+                 "bone", "tool_bone"});
   c.tool_tissue_stiffness_n_per_mm = k.Positive("tool_tissue", c.tool_tissue_stiffness_n_per_mm);
   c.tool_thread_stiffness_n_per_mm = k.Positive("tool_thread", c.tool_thread_stiffness_n_per_mm);
   c.tool_volume_stiffness_n_per_mm = k.Positive("tool_volume", c.tool_volume_stiffness_n_per_mm);
@@ -234,71 +93,21 @@ void ReadContact(const Section& root, Model* m) {
   c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
 }
 
-// A number in [lo, hi] (inclusive ends as stated in the message).
-double InRange(const Section& s, const char* key, double fallback, double lo, double hi,
-               const char* expected) {
-  const double v = s.Number(key, fallback);
-  if (v < lo || v > hi) Fail(s.ctx(), s.Get(key), s.Field(key), std::string("must be ") + expected);
-  return v;
-}
-
-void ReadSoftShaving(const Section& ops, const char* name, SoftShavingOptions* o) {
-  if (!ops.Has(name)) return;
-  Section s(ops.ctx(), ops.Get(name), ops.Field(name),
-            {"rate", "reach", "smoothing", "min_volume_fraction"});
-  o->rate_mm_s = s.Positive("rate", o->rate_mm_s);
-  o->reach_mm = s.NonNegative("reach", o->reach_mm);
-  o->smoothing = InRange(s, "smoothing", o->smoothing, 0, 1, "in [0, 1]");
-  o->min_volume_fraction =
-      InRange(s, "min_volume_fraction", o->min_volume_fraction, 0, 0.99, "in [0, 0.99]");
-}
-
-// Optional `operations:` section: one sub-map per operation (docs/operations.md).
-void ReadOperations(const Section& root, Model* m) {
-  if (!root.Has("operations")) return;
-  OperationOptions& o = m->operations;
-  Section ops(root.ctx(), root.Get("operations"), "operations",
-              {"scissors", "cutter", "shaver", "electrocautery"});
-  if (ops.Has("scissors")) {
-    Section s(root.ctx(), ops.Get("scissors"), ops.Field("scissors"),
-              {"mode", "snap_fraction", "min_jaw_step"});
-    const std::string mode = s.String("mode", "remove");
-    if (mode == "remove") {
-      o.scissors.mode = CutMode::kRemove;
-    } else if (mode == "split") {
-      o.scissors.mode = CutMode::kSplit;
-    } else {
-      Fail(root.ctx(), s.Get("mode"), s.Field("mode"),
-           "expected remove or split, got '" + mode + "'");
-    }
-    o.scissors.snap_fraction =
-        InRange(s, "snap_fraction", o.scissors.snap_fraction, 0, 0.49, "in [0, 0.49]");
-    o.scissors.min_jaw_step =
-        InRange(s, "min_jaw_step", o.scissors.min_jaw_step, 0, 1, "in [0, 1]");
-  }
-  if (ops.Has("cutter")) {
-    Section s(root.ctx(), ops.Get("cutter"), ops.Field("cutter"), {"reach", "cut_at_jaw"});
-    o.cutter.reach_mm = s.Positive("reach", o.cutter.reach_mm);
-    o.cutter.cut_at_jaw = InRange(s, "cut_at_jaw", o.cutter.cut_at_jaw, 0.01, 1, "in [0.01, 1]");
-  }
-  ReadSoftShaving(ops, "shaver", &o.shaver);
-  ReadSoftShaving(ops, "electrocautery", &o.electrocautery);
-}
-
-void ReadMaterials(const Section& root, Model* m) {
+void ReadMaterials(const YamlSection& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
   if (!materials.IsMap())
-    Fail(root.ctx(), materials, "materials", "expected a mapping name -> material");
+    root.reader().Fail(materials, "materials", "expected a mapping name -> material");
   for (auto it = materials.begin(); it != materials.end(); ++it) {
     Material mat;
     mat.name = it->first.as<std::string>();
-    Section s(root.ctx(), it->second, "materials." + mat.name,
-              {"young_modulus", "poisson_ratio", "density", "rayleigh_mass", "rayleigh_stiffness"});
+    YamlSection s(
+        root.reader(), it->second, "materials." + mat.name,
+        {"young_modulus", "poisson_ratio", "density", "rayleigh_mass", "rayleigh_stiffness"});
     mat.young_modulus_pa = s.Positive("young_modulus");
     mat.poisson_ratio = s.Number("poisson_ratio");
     if (mat.poisson_ratio < 0 || mat.poisson_ratio >= 0.5) {
-      Fail(root.ctx(), s.Get("poisson_ratio"), s.Field("poisson_ratio"),
-           "must be in [0, 0.5), got " + s.Get("poisson_ratio").Scalar());
+      root.reader().Fail(s.Get("poisson_ratio"), s.Field("poisson_ratio"),
+                         "must be in [0, 0.5), got " + s.Get("poisson_ratio").Scalar());
     }
     mat.density_kg_m3 = s.Positive("density");
     mat.rayleigh_mass = s.NonNegative("rayleigh_mass", 0);
@@ -308,25 +117,25 @@ void ReadMaterials(const Section& root, Model* m) {
 }
 
 // Resolves a mesh path relative to the scenario and checks it exists.
-std::string MeshPath(const Section& s) {
+std::string MeshPath(const YamlSection& s, const fs::path& base_dir) {
   const std::string rel = s.String("mesh");
-  const fs::path p = s.ctx().base_dir / rel;
+  const fs::path p = base_dir / rel;
   if (!fs::is_regular_file(p)) {
-    Fail(s.ctx(), s.Get("mesh"), s.Field("mesh"), "mesh file not found: " + p.string());
+    s.reader().Fail(s.Get("mesh"), s.Field("mesh"), "mesh file not found: " + p.string());
   }
   return p.string();
 }
 
-void ReadThreadBlock(const Section& body, ThreadModel* t) {
-  Section s(body.ctx(), body.Required("thread"), body.Field("thread"),
-            {"start", "end", "nodes", "diameter", "density", "stretch_stiffness", "bend_stiffness",
-             "damping", "max_speed", "self_collision", "fixed_nodes"});
+void ReadThreadBlock(const YamlSection& body, ThreadModel* t) {
+  YamlSection s(body.reader(), body.Required("thread"), body.Field("thread"),
+                {"start", "end", "nodes", "diameter", "density", "stretch_stiffness",
+                 "bend_stiffness", "damping", "max_speed", "self_collision", "fixed_nodes"});
   const Vec3 start = s.Vector("start");
   const Vec3 end = s.Vector("end");
   if (!s.Has("nodes")) s.Required("nodes");
   const auto n = s.Integer("nodes", 0, 2);
   if ((end - start).norm() <= 0)
-    Fail(s.ctx(), s.Get("end"), s.Field("end"), "must differ from start");
+    s.reader().Fail(s.Get("end"), s.Field("end"), "must differ from start");
   t->initial.nodes.resize(3, n);
   for (std::int64_t i = 0; i < n; ++i) {
     t->initial.nodes.col(i) = start + (end - start) * (static_cast<double>(i) / double(n - 1));
@@ -339,12 +148,12 @@ void ReadThreadBlock(const Section& body, ThreadModel* t) {
   t->damping_per_s = s.NonNegative("damping", 0);
   t->max_speed_mm_s = s.Positive("max_speed", 500);
   t->self_collision = s.Bool("self_collision", true);
-  const YAML::Node fixed = Sequence(s, "fixed_nodes", false);
+  const YAML::Node fixed = s.Sequence("fixed_nodes", false);
   for (std::size_t i = 0; i < fixed.size(); ++i) {
-    const double v = s.ToNumber(fixed[i], Indexed(s.Field("fixed_nodes"), i));
+    const double v = s.reader().Number(fixed[i], IndexedField(s.Field("fixed_nodes"), i));
     if (v != std::floor(v) || v < 0 || v >= double(n)) {
-      Fail(s.ctx(), fixed[i], Indexed(s.Field("fixed_nodes"), i),
-           "expected a node index in [0, " + std::to_string(n - 1) + "]");
+      s.reader().Fail(fixed[i], IndexedField(s.Field("fixed_nodes"), i),
+                      "expected a node index in [0, " + std::to_string(n - 1) + "]");
     }
     t->fixed_nodes.push_back(static_cast<std::int32_t>(v));
   }
@@ -362,39 +171,41 @@ struct PendingFixed {
 };
 
 // Body entries are read in two passes: geometry first (here), fixed regions after regions.
-void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pending) {
-  const YAML::Node bodies = Sequence(root, "bodies", true);
+void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
+                std::vector<PendingFixed>* pending) {
+  const YAML::Node bodies = root.Sequence("bodies", true);
   std::set<std::string> names;
   for (std::size_t i = 0; i < bodies.size(); ++i) {
-    const std::string field = Indexed("bodies", i);
-    Section s(root.ctx(), bodies[i], field,
-              {"name", "kind", "mesh", "material", "fixed", "hardness", "thread"});
+    const std::string field = IndexedField("bodies", i);
+    YamlSection s(root.reader(), bodies[i], field,
+                  {"name", "kind", "mesh", "material", "fixed", "hardness", "thread"});
     const std::string name = s.String("name");
     if (!names.insert(name).second)
-      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate body name '" + name + "'");
+      root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate body name '" + name + "'");
     const std::string kind = s.String("kind");
     if (kind == "soft") {
       SoftBodyModel b;
       b.name = name;
       b.mesh_file = s.String("mesh");
-      b.rest_mesh = mesh::ReadTetMesh(MeshPath(s));
-      mesh::OrientAndCheck(&b.rest_mesh, MeshPath(s));
+      b.rest_mesh = mesh::ReadTetMesh(MeshPath(s, base_dir));
+      mesh::OrientAndCheck(&b.rest_mesh, MeshPath(s, base_dir));
       if (b.rest_mesh.tets.empty())
-        Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "soft body mesh has no tetrahedra");
+        root.reader().Fail(s.Get("mesh"), s.Field("mesh"), "soft body mesh has no tetrahedra");
       const std::string mat = s.String("material");
       auto found = std::find_if(m->materials.begin(), m->materials.end(),
                                 [&](const Material& x) { return x.name == mat; });
       if (found == m->materials.end())
-        Fail(root.ctx(), s.Get("material"), s.Field("material"), "unknown material '" + mat + "'");
+        root.reader().Fail(s.Get("material"), s.Field("material"),
+                           "unknown material '" + mat + "'");
       b.material = *found;
       m->soft_bodies.push_back(std::move(b));
     } else if (kind == "rigid") {
       BoneModel b;
       b.name = name;
       b.mesh_file = s.String("mesh");
-      b.surface = mesh::ReadTriMesh(MeshPath(s));
+      b.surface = mesh::ReadTriMesh(MeshPath(s, base_dir));
       if (b.surface.tris.empty())
-        Fail(root.ctx(), s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
+        root.reader().Fail(s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
       b.hardness = s.Positive("hardness", 1.0);
       m->bones.push_back(std::move(b));
     } else if (kind == "thread") {
@@ -403,17 +214,18 @@ void ReadBodies(const Section& root, Model* m, std::vector<PendingFixed>* pendin
       ReadThreadBlock(s, &t);
       m->threads.push_back(std::move(t));
     } else {
-      Fail(root.ctx(), s.Get("kind"), s.Field("kind"),
-           "expected soft, rigid or thread, got '" + kind + "'");
+      root.reader().Fail(s.Get("kind"), s.Field("kind"),
+                         "expected soft, rigid or thread, got '" + kind + "'");
     }
     if (kind != "thread" && s.Has("thread"))
-      Fail(root.ctx(), s.Get("thread"), s.Field("thread"),
-           "only thread bodies take a thread block");
+      root.reader().Fail(s.Get("thread"), s.Field("thread"),
+                         "only thread bodies take a thread block");
     if (kind != "soft" && s.Has("material"))
-      Fail(root.ctx(), s.Get("material"), s.Field("material"), "only soft bodies take a material");
+      root.reader().Fail(s.Get("material"), s.Field("material"),
+                         "only soft bodies take a material");
     if (s.Has("fixed")) {
       if (kind == "rigid")
-        Fail(root.ctx(), s.Get("fixed"), s.Field("fixed"), "rigid bodies are fixed already");
+        root.reader().Fail(s.Get("fixed"), s.Field("fixed"), "rigid bodies are fixed already");
       pending->push_back({s.Get("fixed"), s.Field("fixed"), name, nullptr});
     }
   }
@@ -432,22 +244,22 @@ const Points* BodyNodes(const Model& m, const std::string& name) {
   return nullptr;
 }
 
-void ReadRegionsAndLandmarks(const Section& root, Model* m) {
-  const YAML::Node regions = Sequence(root, "regions", false);
+void ReadRegionsAndLandmarks(const YamlSection& root, Model* m) {
+  const YAML::Node regions = root.Sequence("regions", false);
   for (std::size_t i = 0; i < regions.size(); ++i) {
-    Section s(root.ctx(), regions[i], Indexed("regions", i), {"name", "body", "box"});
+    YamlSection s(root.reader(), regions[i], IndexedField("regions", i), {"name", "body", "box"});
     Region r;
     r.name = s.String("name");
     if (m->FindRegion(r.name) >= 0)
-      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate region name");
+      root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate region name");
     r.body = s.String("body");
     const Points* nodes = BodyNodes(*m, r.body);
-    if (!nodes) Fail(root.ctx(), s.Get("body"), s.Field("body"), "unknown body '" + r.body + "'");
-    Section box(root.ctx(), s.Required("box"), s.Field("box"), {"min", "max"});
+    if (!nodes) root.reader().Fail(s.Get("body"), s.Field("body"), "unknown body '" + r.body + "'");
+    YamlSection box(root.reader(), s.Required("box"), s.Field("box"), {"min", "max"});
     r.box_min_mm = box.Vector("min");
     r.box_max_mm = box.Vector("max");
     if ((r.box_max_mm.array() < r.box_min_mm.array()).any())
-      Fail(root.ctx(), box.Get("max"), box.Field("max"), "max must be >= min in every axis");
+      root.reader().Fail(box.Get("max"), box.Field("max"), "max must be >= min in every axis");
     for (Eigen::Index n = 0; n < nodes->cols(); ++n) {
       const Vec3 p = nodes->col(n);
       if ((p.array() >= r.box_min_mm.array()).all() && (p.array() <= r.box_max_mm.array()).all()) {
@@ -455,39 +267,40 @@ void ReadRegionsAndLandmarks(const Section& root, Model* m) {
       }
     }
     if (r.nodes.empty())
-      Fail(root.ctx(), s.Get("box"), s.Field("box"),
-           "region '" + r.name + "' contains no node of body '" + r.body + "'");
+      root.reader().Fail(s.Get("box"), s.Field("box"),
+                         "region '" + r.name + "' contains no node of body '" + r.body + "'");
     m->regions.push_back(std::move(r));
   }
-  const YAML::Node landmarks = Sequence(root, "landmarks", false);
+  const YAML::Node landmarks = root.Sequence("landmarks", false);
   for (std::size_t i = 0; i < landmarks.size(); ++i) {
-    Section s(root.ctx(), landmarks[i], Indexed("landmarks", i), {"name", "body", "position"});
+    YamlSection s(root.reader(), landmarks[i], IndexedField("landmarks", i),
+                  {"name", "body", "position"});
     Landmark l;
     l.name = s.String("name");
     if (m->FindLandmark(l.name) >= 0)
-      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate landmark name");
+      root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate landmark name");
     l.body = s.String("body", "");
     if (!l.body.empty() && !BodyNodes(*m, l.body))
-      Fail(root.ctx(), s.Get("body"), s.Field("body"), "unknown body '" + l.body + "'");
+      root.reader().Fail(s.Get("body"), s.Field("body"), "unknown body '" + l.body + "'");
     l.position_mm = s.Vector("position");
     m->landmarks.push_back(l);
   }
 }
 
 // Resolves each body's `fixed: [region, ...]` into sorted unique node indices.
-void ResolveFixed(const Context& ctx, const Model& m, const std::vector<PendingFixed>& pending) {
+void ResolveFixed(const YamlReader& ctx, const Model& m, const std::vector<PendingFixed>& pending) {
   for (const PendingFixed& p : pending) {
-    if (!p.list.IsSequence()) Fail(ctx, p.list, p.field, "expected a list of region names");
+    if (!p.list.IsSequence()) ctx.Fail(p.list, p.field, "expected a list of region names");
     for (std::size_t k = 0; k < p.list.size(); ++k) {
       const YAML::Node item = p.list[k];
-      const std::string field = Indexed(p.field, k);
-      if (!item.IsScalar()) Fail(ctx, item, field, "expected a region name");
+      const std::string field = IndexedField(p.field, k);
+      if (!item.IsScalar()) ctx.Fail(item, field, "expected a region name");
       const int r = m.FindRegion(item.Scalar());
-      if (r < 0) Fail(ctx, item, field, "unknown region '" + item.Scalar() + "'");
+      if (r < 0) ctx.Fail(item, field, "unknown region '" + item.Scalar() + "'");
       if (m.regions[r].body != p.body) {
-        Fail(ctx, item, field,
-             "region '" + item.Scalar() + "' belongs to body '" + m.regions[r].body + "', not '" +
-                 p.body + "'");
+        ctx.Fail(item, field,
+                 "region '" + item.Scalar() + "' belongs to body '" + m.regions[r].body +
+                     "', not '" + p.body + "'");
       }
       p.nodes->insert(p.nodes->end(), m.regions[r].nodes.begin(), m.regions[r].nodes.end());
     }
@@ -496,56 +309,57 @@ void ResolveFixed(const Context& ctx, const Model& m, const std::vector<PendingF
   }
 }
 
-void ReadJoinsAndPortals(const Section& root, Model* m) {
-  const YAML::Node joins = Sequence(root, "joins", false);
+void ReadJoinsAndPortals(const YamlSection& root, Model* m) {
+  const YAML::Node joins = root.Sequence("joins", false);
   for (std::size_t i = 0; i < joins.size(); ++i) {
-    Section s(root.ctx(), joins[i], Indexed("joins", i), {"a", "b", "tolerance"});
+    YamlSection s(root.reader(), joins[i], IndexedField("joins", i), {"a", "b", "tolerance"});
     Join j{s.String("a"), s.String("b"), s.Positive("tolerance", 1e-6)};
     for (const char* key : {"a", "b"}) {
       const std::string& body = key[0] == 'a' ? j.body_a : j.body_b;
       if (m->FindSoftBody(body) < 0)
-        Fail(root.ctx(), s.Get(key), s.Field(key),
-             "expected the name of a soft body, got '" + body + "'");
+        root.reader().Fail(s.Get(key), s.Field(key),
+                           "expected the name of a soft body, got '" + body + "'");
     }
     if (j.body_a == j.body_b)
-      Fail(root.ctx(), s.Get("b"), s.Field("b"), "a body cannot be joined to itself");
+      root.reader().Fail(s.Get("b"), s.Field("b"), "a body cannot be joined to itself");
     m->joins.push_back(j);
   }
-  const YAML::Node portals = Sequence(root, "portals", false);
+  const YAML::Node portals = root.Sequence("portals", false);
   for (std::size_t i = 0; i < portals.size(); ++i) {
-    Section s(root.ctx(), portals[i], Indexed("portals", i), {"name", "position"});
+    YamlSection s(root.reader(), portals[i], IndexedField("portals", i), {"name", "position"});
     Portal p{s.String("name"), s.Vector("position")};
     if (m->FindPortal(p.name) >= 0)
-      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate portal name");
+      root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate portal name");
     m->portals.push_back(p);
   }
 }
 
-std::string CheckPortal(const Section& s, const Model& m, const std::string& fallback) {
+std::string CheckPortal(const YamlSection& s, const Model& m, const std::string& fallback) {
   const std::string portal = s.String("portal", fallback);
   if (m.FindPortal(portal) < 0)
-    Fail(s.ctx(), s.Has("portal") ? s.Get("portal") : s.node(), s.Field("portal"),
-         "unknown portal '" + portal + "'");
+    s.reader().Fail(s.Has("portal") ? s.Get("portal") : s.node(), s.Field("portal"),
+                    "unknown portal '" + portal + "'");
   return portal;
 }
 
-void ReadInstruments(const Section& root, Model* m) {
-  const YAML::Node list = Sequence(root, "instruments", false);
+void ReadInstruments(const YamlSection& root, Model* m) {
+  const YAML::Node list = root.Sequence("instruments", false);
   for (std::size_t i = 0; i < list.size(); ++i) {
-    Section s(
-        root.ctx(), list[i], Indexed("instruments", i),
+    YamlSection s(
+        root.reader(), list[i], IndexedField("instruments", i),
         {"name", "kind", "portal", "shaft_diameter", "shaft_length", "tip_length", "tip_radius"});
     InstrumentModel in;
     in.name = s.String("name");
     if (m->FindInstrument(in.name) >= 0)
-      Fail(root.ctx(), s.Get("name"), s.Field("name"), "duplicate instrument name");
+      root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate instrument name");
     const std::string kind = s.String("kind");
     const auto parsed = ParseInstrumentKind(kind);
     if (!parsed) {
-      Fail(root.ctx(), s.Get("kind"), s.Field("kind"),
-           "unknown instrument kind '" + kind +
-               "' (expected scissors, cutter, burr, shaver, electrocautery, awl, retriever, "
-               "grasper, scorpion_needle, knot_pusher or hook)");
+      root.reader().Fail(
+          s.Get("kind"), s.Field("kind"),
+          "unknown instrument kind '" + kind +
+              "' (expected scissors, cutter, burr, shaver, electrocautery, awl, retriever, "
+              "grasper, scorpion_needle, knot_pusher or hook)");
     }
     in.kind = *parsed;
     in.portal = CheckPortal(s, *m, "");
@@ -557,43 +371,38 @@ void ReadInstruments(const Section& root, Model* m) {
   }
 }
 
-void ReadCamera(const Section& root, Model* m) {
+void ReadCamera(const YamlSection& root, Model* m) {
   CameraModel& c = m->camera;
   if (!root.Has("camera")) {
     c.initial_pose = Pose{};
     return;
   }
-  Section s(root.ctx(), root.Get("camera"), "camera",
-            {"portal", "fov", "lens_angle", "diameter", "near", "far", "position", "look_at"});
+  YamlSection s(root.reader(), root.Get("camera"), "camera",
+                {"portal", "fov", "lens_angle", "diameter", "near", "far", "position", "look_at"});
   c.portal = s.Has("portal") ? CheckPortal(s, *m, "") : c.portal;
   c.fov_deg = s.Positive("fov", 105);
-  if (c.fov_deg >= 180) Fail(root.ctx(), s.Get("fov"), s.Field("fov"), "must be < 180 degrees");
+  if (c.fov_deg >= 180) root.reader().Fail(s.Get("fov"), s.Field("fov"), "must be < 180 degrees");
   c.lens_angle_deg = s.NonNegative("lens_angle", 30);
   if (c.lens_angle_deg >= 90)
-    Fail(root.ctx(), s.Get("lens_angle"), s.Field("lens_angle"), "must be < 90 degrees");
+    root.reader().Fail(s.Get("lens_angle"), s.Field("lens_angle"), "must be < 90 degrees");
   c.diameter_mm = s.Positive("diameter", 4.0);
   c.near_mm = s.Positive("near", 1.0);
   c.far_mm = s.Positive("far", 100.0);
-  if (c.far_mm <= c.near_mm) Fail(root.ctx(), s.Get("far"), s.Field("far"), "must be > near");
+  if (c.far_mm <= c.near_mm) root.reader().Fail(s.Get("far"), s.Field("far"), "must be > near");
   const Vec3 eye = s.Vector("position", Vec3(0, 0, 0));
   const Vec3 target = s.Vector("look_at", eye + Vec3::UnitX());
   if ((target - eye).norm() <= 0)
-    Fail(root.ctx(), s.Get("look_at"), s.Field("look_at"), "must differ from position");
+    root.reader().Fail(s.Get("look_at"), s.Field("look_at"), "must differ from position");
   c.initial_pose = Pose{eye, LookAtOrientation(eye, target)};
 }
 
 }  // namespace
 
 Model LoadScenarioFromText(const std::string& text, const std::string& path) {
-  Context ctx{path, fs::path(path).parent_path()};
-  YAML::Node doc;
-  try {
-    doc = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw InputError(path, e.mark.line + 1, "", "YAML syntax error: " + e.msg);
-  }
+  const YamlReader ctx(path);
+  const YAML::Node doc = ParseYaml(text, path);
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
-  Section root(
+  YamlSection root(
       ctx, doc, "",
       {"name", "seed", "time", "gravity", "solver", "output", "contact", "operations", "materials",
        "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
@@ -607,7 +416,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   ReadOperations(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
-  ReadBodies(root, &m, &pending_fixed);
+  ReadBodies(root, fs::path(path).parent_path(), &m, &pending_fixed);
   ReadRegionsAndLandmarks(root, &m);
   ResolveFixed(ctx, m, pending_fixed);
   ReadJoinsAndPortals(root, &m);

@@ -938,7 +938,7 @@ void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec
   // length constraints; the explicit guess x0 + dt v0 of a moving slack chain is not (its
   // stretch energy can be 1e5 times the step's), and on the benchmark scene it keeps Newton
   // at its iteration cap. The step energy is not convex for a compressed chain, so the start
-  // can decide which minimum a step finds (see the report on the draped-arch test).
+  // can decide which minimum a step finds (an arch draped over another thread is one such case).
   s.x = s.x0;
   Points& x = s.x;
   for (int round = 0;; ++round) {

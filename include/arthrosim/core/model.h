@@ -45,8 +45,8 @@ struct ThreadModel {
   std::string name;
   mesh::LineMesh initial;             ///< initial node positions and segments (a chain 0-1-...-n)
   double diameter_mm = 0.55;          ///< USP 2
-  double density_kg_m3 = 1300;        ///< clinical.md section 4
-  double stretch_stiffness_n = 5000;  ///< axial stiffness EA, N (clinical.md: EA ~ 5 kN)
+  double density_kg_m3 = 1300;        ///< UHMWPE core (970) + polyester jacket (1380)
+  double stretch_stiffness_n = 5000;  ///< EA, N: ~250 N break over ~5 % strain (Turker 2011)
   double bend_stiffness_n_mm2 = 0;    ///< EI, N*mm^2 (0 disables bending)
   double damping_per_s = 0;           ///< mass-proportional damping, 1/s
   double max_speed_mm_s = 500;        ///< anti-jitter node speed cap (paper section II)
@@ -89,7 +89,7 @@ struct Portal {
   Vec3 position_mm = Vec3::Zero();
 };
 
-/// Arthroscope optics (clinical.md section 5).
+/// Arthroscope optics: 4 mm, 30-degree scope, 105-degree field of view (Kwak et al. 2019).
 struct CameraModel {
   std::string portal = "posterior";
   double fov_deg = 105;        ///< image-circle field of view (in fluid)
@@ -125,7 +125,7 @@ struct Join {
 
 enum class Integrator : std::uint8_t { kImplicitEuler, kArkode };
 
-/// Numerical options (SOFA defaults in docs; see sofa-defaults.md section 1.2).
+/// Solver options: implicit Euler + CG as SOFA's EulerImplicitSolver + CGLinearSolver (|r|/|b|).
 struct SolverOptions {
   Integrator integrator = Integrator::kImplicitEuler;
   int cg_max_iterations = 100;
