@@ -3,23 +3,25 @@
 
 #include <array>
 
+#include "operations.h"
+
 namespace arthrosim::instruments {
 namespace {
 
 // One entry per InstrumentKind, in enum order; nullptr = contact only (no operation yet or
 // none by design). Each operation lives in its own file and is declared in operations.h.
 constexpr std::array<Operation, kInstrumentKindCount> kOperations = {
-    nullptr,  // kScissors
-    nullptr,  // kCutter
-    nullptr,  // kBurr
-    nullptr,  // kShaver
-    nullptr,  // kElectrocautery
-    nullptr,  // kAwl
-    nullptr,  // kRetriever
-    nullptr,  // kGrasper
-    nullptr,  // kScorpionNeedle
-    nullptr,  // kKnotPusher
-    nullptr,  // kHook
+    nullptr,         // kScissors
+    nullptr,         // kCutter
+    &BurrOperation,  // kBurr
+    nullptr,         // kShaver
+    nullptr,         // kElectrocautery
+    &AwlOperation,   // kAwl
+    nullptr,         // kRetriever
+    nullptr,         // kGrasper
+    nullptr,         // kScorpionNeedle
+    nullptr,         // kKnotPusher
+    nullptr,         // kHook
 };
 
 }  // namespace

@@ -234,6 +234,57 @@ void ReadContact(const Section& root, Model* m) {
   c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
 }
 
+// Optional `operations:` section: one sub-map per operation (docs/scenario-format.md).
+void ReadOperations(const Section& root, Model* m) {
+  if (!root.Has("operations")) return;
+  OperationOptions& o = m->operations;
+  Section s(root.ctx(), root.Get("operations"), "operations", {"burr", "awl", "anchor"});
+  if (s.Has("burr")) {
+    Section b(root.ctx(), s.Get("burr"), s.Field("burr"),
+              {"depth_rate", "speed", "max_edge", "smoothing_ring"});
+    o.burr.depth_rate_mm_s = b.Positive("depth_rate", o.burr.depth_rate_mm_s);
+    o.burr.speed = b.Positive("speed", o.burr.speed);
+    if (o.burr.speed > 1) Fail(root.ctx(), b.Get("speed"), b.Field("speed"), "must be in (0, 1]");
+    o.burr.max_edge_mm = b.Positive("max_edge", o.burr.max_edge_mm);
+    o.burr.smoothing_ring_mm = b.NonNegative("smoothing_ring", o.burr.smoothing_ring_mm);
+  }
+  if (s.Has("awl")) {
+    Section a(root.ctx(), s.Get("awl"), s.Field("awl"),
+              {"method", "max_angle", "max_edge", "min_depth"});
+    o.awl.method = static_cast<int>(a.Integer("method", o.awl.method, 1));
+    if (o.awl.method > 2) Fail(root.ctx(), a.Get("method"), a.Field("method"), "expected 1 or 2");
+    o.awl.max_angle_deg = a.Positive("max_angle", o.awl.max_angle_deg);
+    if (o.awl.max_angle_deg >= 90) {
+      Fail(root.ctx(), a.Get("max_angle"), a.Field("max_angle"), "must be < 90 (degrees)");
+    }
+    o.awl.max_edge_mm = a.Positive("max_edge", o.awl.max_edge_mm);
+    o.awl.min_depth_mm = a.Positive("min_depth", o.awl.min_depth_mm);
+  }
+  if (s.Has("anchor")) {
+    Section a(root.ctx(), s.Get("anchor"), s.Field("anchor"),
+              {"min_hole_depth", "capture_radius", "stiffness", "sutures"});
+    o.anchor.min_hole_depth_mm = a.Positive("min_hole_depth", o.anchor.min_hole_depth_mm);
+    o.anchor.capture_radius_mm = a.Positive("capture_radius", o.anchor.capture_radius_mm);
+    o.anchor.stiffness_n_per_mm = a.Positive("stiffness", o.anchor.stiffness_n_per_mm);
+    const YAML::Node list = Sequence(a, "sutures", false);
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string field = Indexed(a.Field("sutures"), i);
+      if (!list[i].IsScalar() || list[i].Scalar().empty())
+        Fail(root.ctx(), list[i], field, "expected a thread name");
+      const std::string name = list[i].Scalar();
+      const int t = m->FindThread(name);
+      if (t < 0) Fail(root.ctx(), list[i], field, "no thread named '" + name + "' in bodies");
+      if (!m->threads[static_cast<std::size_t>(t)].fixed_nodes.empty()) {
+        Fail(root.ctx(), list[i], field,
+             "thread '" + name +
+                 "' has fixed_nodes; a suture the anchor carries is held by the "
+                 "anchor, not fixed (remove its fixed_nodes)");
+      }
+      o.anchor.sutures.push_back(name);
+    }
+  }
+}
+
 void ReadMaterials(const Section& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
   if (!materials.IsMap())
@@ -542,9 +593,10 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
     throw InputError(path, e.mark.line + 1, "", "YAML syntax error: " + e.msg);
   }
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
-  Section root(ctx, doc, "",
-               {"name", "seed", "time", "gravity", "solver", "output", "contact", "materials",
-                "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
+  Section root(
+      ctx, doc, "",
+      {"name", "seed", "time", "gravity", "solver", "output", "contact", "materials", "bodies",
+       "joins", "portals", "instruments", "camera", "landmarks", "regions", "operations"});
   Model m;
   m.scenario_path = path;
   m.scenario_text = text;
@@ -560,6 +612,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   ReadJoinsAndPortals(root, &m);
   ReadInstruments(root, &m);
   ReadCamera(root, &m);
+  ReadOperations(root, &m);
   return m;
 }
 

@@ -160,6 +160,37 @@ struct Options {
   double flush_interval_s = 1.0;  ///< HDF5 flush at least this often in simulated time
 };
 
+/// Burr (scenario `operations.burr`): bone removal while button 1 is held in contact.
+struct BurrOptions {
+  double depth_rate_mm_s = 1.0;    ///< surface recession speed at full speed on hardness 1, mm/s
+  double speed = 1.0;              ///< burr speed as a fraction of full speed, (0, 1]
+  double max_edge_mm = 0.5;        ///< bone edges near the burr are split down to this, mm
+  double smoothing_ring_mm = 0.5;  ///< width of the crater rim that is smoothed, mm
+};
+
+/// Awl (scenario `operations.awl`): the pilot hole.
+struct AwlOptions {
+  int method = 2;             ///< 1: contact vertex + neighbours; 2: axis-aligned hole
+  double max_angle_deg = 60;  ///< method 2: tool axis vs tip->contact direction, deg
+  double max_edge_mm = 0.25;  ///< bone edges near the point are split down to this, mm
+  double min_depth_mm = 0.2;  ///< a hole is recorded once it is this deep, mm
+};
+
+/// Anchor (scenario `operations.anchor`): seated with button 2 of the awl in a hole.
+struct AnchorOptions {
+  double min_hole_depth_mm = 3.0;      ///< a hole must be at least this deep, mm
+  double capture_radius_mm = 3.0;      ///< awl tip within this of a hole's axis seats it, mm
+  double stiffness_n_per_mm = 2000.0;  ///< suture limb to anchor spring, N/mm
+  std::vector<std::string> sutures;    ///< threads whose node 0 the anchor carries
+};
+
+/// Thresholds of the instrument operations (scenario `operations:`; defaults in mm).
+struct OperationOptions {
+  BurrOptions burr;
+  AwlOptions awl;
+  AnchorOptions anchor;
+};
+
 /// Everything a scenario defines. Immutable after loading.
 struct Model {
   std::string name;
@@ -169,6 +200,7 @@ struct Model {
   Options options;
   SolverOptions solver;
   ContactOptions contact;
+  OperationOptions operations;
   std::vector<Material> materials;
   std::vector<SoftBodyModel> soft_bodies;
   std::vector<BoneModel> bones;
