@@ -603,7 +603,7 @@ def vec(p):
     return "[%s]" % ", ".join(fmt(c) for c in p)
 
 
-def scenario_text(name, duration, points, with_biceps, title, extra_header):
+def scenario_text(name, duration, points, with_biceps, title, extra_header, anchored_sutures):
     """The scenario YAML (docs/scenario-format.md)."""
     L = []
     w = L.append
@@ -656,9 +656,16 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
     if with_biceps:
         w("  - {name: biceps_tendon, kind: soft, mesh: meshes/biceps_tendon.msh, material: tendon,")
         w("     fixed: [biceps_ends_proximal, biceps_ends_distal]}")
-    w("  # Two limbs of a double-loaded anchor at anchor_site_1 (0.4 mm either side of it), running")
-    w("  # out toward the lateral portal. No. 2 FiberWire: d 0.55 mm, EA 5 kN (~5 % elongation at")
-    w("  # failure, Turker 2011), rho 1300; 60 nodes over 60 mm.")
+    if anchored_sutures:
+        w("  # Two limbs of a double-loaded anchor, running out toward the lateral portal. They belong to")
+        w("  # the anchor (operations.anchor.sutures below): out of the scene until the awl seats it,")
+        w("  # then laid from its eyelet (this shape, moved there) and held to it. No. 2 FiberWire:")
+        w("  # d 0.55 mm, EA 5 kN (~5 % elongation at failure, Turker 2011), rho 1300; 60 nodes over")
+        w("  # 60 mm.")
+    else:
+        w("  # Two limbs of a double-loaded anchor at anchor_site_1 (0.4 mm either side of it), running")
+        w("  # out toward the lateral portal. No. 2 FiberWire: d 0.55 mm, EA 5 kN (~5 % elongation at")
+        w("  # failure, Turker 2011), rho 1300; 60 nodes over 60 mm.")
     sut = suture_lines(points)
     for sname in ("suture_a", "suture_b"):
         s, e = sut[sname]
@@ -666,7 +673,8 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
         w("    kind: thread")
         w("    thread: {start: %s, end: %s, nodes: 60," % (vec(s), vec(e)))
         w("             diameter: 0.55, density: 1300, stretch_stiffness: 5000, bend_stiffness: 0,")
-        w("             damping: 0, max_speed: 500, self_collision: true, fixed_nodes: [0]}")
+        w("             damping: 0, max_speed: 500, self_collision: true%s}" % (
+            "" if anchored_sutures else ", fixed_nodes: [0]"))
     w("")
     w("joins:")
     w("  - {a: supraspinatus_muscle, b: supraspinatus_tendon}")
@@ -708,6 +716,11 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header):
         if body == "biceps_tendon" and not with_biceps:
             continue
         w("  - {name: %s, body: %s, box: {min: %s, max: %s}}" % (rname, body, vec(lo), vec(hi)))
+    if anchored_sutures:
+        w("")
+        w("# Instrument operations (docs/scenario-format.md, docs/operations.md); defaults elsewhere.")
+        w("operations:")
+        w("  anchor: {sutures: [suture_a, suture_b]}")
     return "\n".join(L) + "\n"
 
 
@@ -924,13 +937,14 @@ def main():
             b["xyz"], np.column_stack([b["tets"], np.ones(len(b["tets"]), int)]), 4, [(1, name)])
     files["rotator_cuff_repair.yaml"] = scenario_text(
         "rotator_cuff_repair", 5.0, points, True,
-        "arthroscopic repair of a retracted full-thickness supraspinatus tear", [])
+        "arthroscopic repair of a retracted full-thickness supraspinatus tear", [],
+        anchored_sutures=True)
     files["bench_full.yaml"] = scenario_text(
         "bench_full", 2.0, points, False, "benchmark, sized like the paper's model",
         ["", "Benchmark: the paper's model was one muscle, one tendon and two bones (muscle 627",
          "nodes / 2026 tets, tendon 398 / 1261, bones 3010 / 6016 and 69 / 134 triangles) plus",
          "two 60-node threads; this file uses the same meshes as rotator_cuff_repair.yaml",
-         "without the biceps so the FEM size matches the paper."])
+         "without the biceps so the FEM size matches the paper."], anchored_sutures=False)
     if args.check:
         return 0
     for rel, text in sorted(files.items()):

@@ -1,5 +1,7 @@
 #include "arthrosim/core/state.h"
 
+#include <algorithm>
+
 #include "arthrosim/core/hash.h"
 #include "arthrosim/core/model.h"
 
@@ -18,12 +20,18 @@ State MakeInitialState(const Model& model) {
     b.tet_alive.assign(b.tets.size(), 1);
     s.soft_bodies.push_back(std::move(b));
   }
-  for (const BoneModel& bone : model.bones) s.bones.push_back(BoneState{bone.surface, 0.0});
+  for (const BoneModel& bone : model.bones) {
+    s.bones.push_back(BoneState{bone.surface, 0.0, {}});
+    s.bones.back().removed_by_region_mm3.assign(model.regions.size() + 1, 0.0);
+  }
   for (const ThreadModel& thread : model.threads) {
     ThreadState t;
     t.x = thread.initial.nodes;
     t.v = Points::Zero(3, thread.initial.nodes.cols());
-    t.node_alive.assign(thread.initial.nodes.cols(), 1);
+    // A suture the anchor carries is not in the scene until the anchor is seated.
+    const auto& carried = model.operations.anchor.sutures;
+    const bool on_anchor = std::find(carried.begin(), carried.end(), thread.name) != carried.end();
+    t.node_alive.assign(thread.initial.nodes.cols(), on_anchor ? 0 : 1);
     s.threads.push_back(std::move(t));
   }
   s.camera.pose = model.camera.initial_pose;
@@ -53,6 +61,7 @@ void VisitState(const State& s, V&& v) {
     v(b.surface.nodes);
     v(b.surface.tris);
     v(b.removed_volume_mm3);
+    v(b.removed_by_region_mm3);
   }
   for (const ThreadState& t : s.threads) {
     v(t.x);
@@ -101,6 +110,26 @@ void VisitState(const State& s, V&& v) {
     v(static_cast<std::uint8_t>(c.body_kind));
     v(c.body);
     v(c.position_mm);
+  }
+  v(s.holes.size());
+  for (const BoneHole& h : s.holes) {
+    v(h.bone);
+    v(h.tool_slot);
+    v(h.entry_mm);
+    v(h.axis);
+    v(h.depth_mm);
+    v(h.diameter_mm);
+    v(h.angle_deg);
+    v(h.open);
+  }
+  v(s.anchors.size());
+  for (const AnchorState& a : s.anchors) {
+    v(a.bone);
+    v(a.hole);
+    v(a.position_mm);
+    v(a.axis);
+    v(a.depth_mm);
+    v(a.angle_deg);
   }
 }
 

@@ -43,6 +43,24 @@ struct Blocks {
   hsize_t frames() const { return std::min(offset_ds.dims()[0], count_ds.dims()[0]); }
 };
 
+// Frame t's rows of a float64 block series with `columns` columns (none if it is absent).
+std::vector<std::vector<double>> ReadRows(const Blocks& b, std::size_t t, int columns) {
+  std::vector<std::vector<double>> out;
+  if (!b.data.valid() || t >= b.count.size()) return out;
+  const auto off = static_cast<hsize_t>(b.offset[t]);
+  const auto n = static_cast<hsize_t>(b.count[t]);
+  std::vector<double> flat(n * static_cast<hsize_t>(columns));
+  if (n > 0) {
+    b.data.Read({off, 0}, {n, static_cast<hsize_t>(columns)}, H5T_NATIVE_DOUBLE, flat.data());
+  }
+  for (hsize_t r = 0; r < n; ++r) {
+    const auto first =
+        flat.begin() + static_cast<std::ptrdiff_t>(r * static_cast<hsize_t>(columns));
+    out.emplace_back(first, first + columns);
+  }
+  return out;
+}
+
 struct BodyIn {
   h5::Dataset positions, node_count_ds, element_count_ds, element_alive, elements;
   h5::Dataset removed_ds, cauterized_ds;  // absent in files written before the operations
@@ -59,8 +77,9 @@ struct ThreadIn {
 
 struct BoneIn {
   Blocks vertices, triangles;
-  h5::Dataset removed_ds;
-  std::vector<double> removed;
+  h5::Dataset removed_ds, by_region_ds;
+  std::vector<double> removed, by_region;  ///< by_region: frames x columns, row-major
+  std::size_t by_region_columns = 0;
 };
 
 }  // namespace
@@ -85,6 +104,7 @@ struct RunReader::Impl {
   std::vector<ThreadIn> threads;
   std::vector<BoneIn> bones;
   Blocks constraints, contacts;
+  Blocks holes, anchors;  // absent in files written before they existed
   h5::Handle event_mem, constraint_mem, contact_mem;
 
   // Every dataset with one row per frame: the complete frame count is their smallest extent
@@ -142,6 +162,9 @@ void RunReader::Impl::Open() {
     b.vertices.Open(g, "vertices");
     b.triangles.Open(g, "triangles");
     b.removed_ds = g.OpenDataset("removed_volume");
+    if (g.Exists("removed_volume_by_region")) {
+      b.by_region_ds = g.OpenDataset("removed_volume_by_region");
+    }
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kTools)) {
     info.instruments.push_back(layout::LeafName(g.path()));
@@ -180,6 +203,8 @@ void RunReader::Impl::Open() {
     }
   }
   contacts.Open(root.OpenGroup(layout::kToolContacts), "rows");
+  if (root.Exists(layout::kHoles)) holes.Open(root.OpenGroup(layout::kHoles), "rows");
+  if (root.Exists(layout::kAnchors)) anchors.Open(root.OpenGroup(layout::kAnchors), "rows");
   for (Blocks* b : {&constraints, &contacts}) {
     frame(b->offset_ds);
     frame(b->count_ds);
@@ -221,9 +246,17 @@ void RunReader::Impl::Load() {
     b.vertices.Load();
     b.triangles.Load();
     b.removed = b.removed_ds.ReadAll<double>();
+    if (b.by_region_ds.valid()) {
+      b.by_region = b.by_region_ds.ReadAll<double>();
+      const std::vector<hsize_t> d = b.by_region_ds.dims();
+      b.by_region_columns = d.size() == 2 ? static_cast<std::size_t>(d[1]) : 0;
+    }
   }
   constraints.Load();
   contacts.Load();
+  for (Blocks* b : {&holes, &anchors}) {
+    if (b->data.valid()) b->Load();
+  }
 }
 
 RunReader::RunReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
@@ -258,6 +291,9 @@ std::int64_t RunReader::Refresh() {
   }
   m.constraints.data.Refresh();
   m.contacts.data.Refresh();
+  for (Blocks* b : {&m.holes, &m.anchors}) {
+    if (b->data.valid()) b->Refresh();
+  }
   m.Load();
   return m.frames;
 }
@@ -335,6 +371,12 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     d.triangles.data.Read({toff, 0}, {tn, 3}, H5T_NATIVE_INT32,
                           s.surface.tris.empty() ? nullptr : s.surface.tris[0].data());
     s.removed_volume_mm3 = d.removed[t];
+    const std::size_t w = d.by_region_columns;
+    if (w > 0 && (static_cast<std::size_t>(t) + 1) * w <= d.by_region.size()) {
+      const auto row =
+          d.by_region.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(t) * w);
+      s.removed_by_region_mm3.assign(row, row + static_cast<std::ptrdiff_t>(w));
+    }
     // Surfaces are stored once per change: the block offsets identify this frame's surface.
     s.revision = (static_cast<std::uint64_t>(voff) << 32) ^ static_cast<std::uint64_t>(toff);
   }
@@ -368,6 +410,14 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     out.tool_contacts.clear();
     for (const layout::ToolContactRecord& r : rows)
       out.tool_contacts.push_back(layout::FromRecord(r));
+  }
+  out.holes.clear();
+  for (const std::vector<double>& row : ReadRows(m.holes, t, layout::kHoleColumns)) {
+    out.holes.push_back(layout::HoleFromRow(row.data()));
+  }
+  out.anchors.clear();
+  for (const std::vector<double>& row : ReadRows(m.anchors, t, layout::kAnchorColumns)) {
+    out.anchors.push_back(layout::AnchorFromRow(row.data()));
   }
   {
     const auto first = static_cast<hsize_t>(t == 0 ? 0 : m.events_end[t - 1]);

@@ -78,7 +78,7 @@ struct ThreadOut {
 
 struct BoneOut {
   BlockSeries vertices, triangles;
-  FrameSeries removed_volume;
+  FrameSeries removed_volume, removed_by_region;
 };
 
 struct ToolOut {
@@ -107,6 +107,7 @@ struct RunWriter::Impl {
   FrameSeries slot_instrument, slot_pose, slot_jaw, slot_buttons, slot_force;
   FrameSeries camera_pose, camera_lens_roll, camera_head_roll;
   BlockSeries constraints, contacts;
+  BlockSeries holes, anchors;  // float64 rows: HoleRow / AnchorRow of hdf5_layout.h
 
   std::int64_t frames = 0, flushed = 0;
   std::int64_t xdmf_frames = 0;     // frames in the sidecar as last written
@@ -230,6 +231,13 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
     bones[i].triangles.Create(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z);
     bones[i].removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {},
                                    nullptr, z);
+    // One column per Model region (in scenario order) plus "elsewhere".
+    std::string columns;
+    for (const Region& r : model->regions) columns += r.name + ",";
+    g.SetAttr("removed_by_region_columns", columns + "elsewhere");
+    bones[i].removed_by_region.Create(g, "removed_volume_by_region", H5T_IEEE_F64LE,
+                                      H5T_NATIVE_DOUBLE, {model->regions.size() + 1}, {}, nullptr,
+                                      z);
   }
 
   h5::Group gto = root.CreateGroup(layout::kTools);
@@ -274,6 +282,13 @@ void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial)
   contact_file = layout::ToolContactType(true);
   contacts.Create(gtc, "rows", contact_file.get(), contact_mem.get(), 0,
                   sizeof(layout::ToolContactRecord), z);
+
+  h5::Group gho = root.CreateGroup(layout::kHoles);
+  holes.Create(gho, "rows", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kHoleColumns,
+               sizeof(double) * layout::kHoleColumns, z);
+  h5::Group gan = root.CreateGroup(layout::kAnchors);
+  anchors.Create(gan, "rows", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kAnchorColumns,
+                 sizeof(double) * layout::kAnchorColumns, z);
 }
 
 template <class F>
@@ -286,11 +301,12 @@ void RunWriter::Impl::ForEachSeries(F f) {
   for (ThreadOut& t : threads) {
     f(t.positions), f(t.node_count), f(t.node_alive), f(t.alive_segments), f(t.xdmf_points);
   }
-  for (BoneOut& b : bones) f(b.vertices), f(b.triangles), f(b.removed_volume);
+  for (BoneOut& b : bones)
+    f(b.vertices), f(b.triangles), f(b.removed_volume), f(b.removed_by_region);
   for (ToolOut& o : tools) f(o.pose), f(o.jaw), f(o.buttons), f(o.force), f(o.active), f(o.slot);
   f(slot_instrument), f(slot_pose), f(slot_jaw), f(slot_buttons), f(slot_force);
   f(camera_pose), f(camera_lens_roll), f(camera_head_roll);
-  f(constraints), f(contacts);
+  f(constraints), f(contacts), f(holes), f(anchors);
   f(events_end), f(rng_state), f(next_constraint_id), f(step);
 }
 
@@ -424,6 +440,8 @@ void RunWriter::Impl::WriteFrame(const State& s) {
     bones[i].triangles.Write(sb.surface.tris.empty() ? nullptr : sb.surface.tris[0].data(),
                              static_cast<std::int64_t>(sb.surface.tris.size()));
     bones[i].removed_volume.Push(sb.removed_volume_mm3);
+    bones[i].removed_by_region.Write({sb.removed_by_region_mm3.size()},
+                                     sb.removed_by_region_mm3.data());
   }
 
   // Per instrument of the Model: which slot holds it, if any.
@@ -491,6 +509,12 @@ void RunWriter::Impl::WriteFrame(const State& s) {
   contact_records.clear();
   for (const ToolContact& c : s.tool_contacts) contact_records.push_back(layout::ToRecord(c));
   contacts.Write(contact_records.data(), static_cast<std::int64_t>(contact_records.size()));
+  std::vector<double> rows;
+  for (const BoneHole& h : s.holes) layout::AppendHoleRow(h, &rows);
+  holes.Write(rows.data(), static_cast<std::int64_t>(s.holes.size()));
+  rows.clear();
+  for (const AnchorState& a : s.anchors) layout::AppendAnchorRow(a, &rows);
+  anchors.Write(rows.data(), static_cast<std::int64_t>(s.anchors.size()));
 
   if (last_events_step != s.step) {
     for (const Event& e : s.events) pending_events.push_back(layout::ToRecord(e));

@@ -413,7 +413,6 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   m.name = root.String("name");
   ReadTimeAndSolver(root, &m);
   ReadContact(root, &m);
-  ReadOperations(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
   ReadBodies(root, fs::path(path).parent_path(), &m, &pending_fixed);
@@ -422,6 +421,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   ReadJoinsAndPortals(root, &m);
   ReadInstruments(root, &m);
   ReadCamera(root, &m);
+  ReadOperations(root, &m);  // last: operations name bodies (the anchor's sutures)
   return m;
 }
 

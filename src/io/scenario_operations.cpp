@@ -51,17 +51,73 @@ void ReadSoftShaving(const YamlSection& ops, const char* name, SoftShavingOption
       InRange(s, "min_volume_fraction", o->min_volume_fraction, 0, 0.99, "in [0, 0.99]");
 }
 
+void ReadBurr(const YamlSection& ops, BurrOptions* o) {
+  if (!ops.Has("burr")) return;
+  const YamlSection b(ops.reader(), ops.Get("burr"), ops.Field("burr"),
+                      {"depth_rate", "speed", "max_edge", "smoothing_ring"});
+  o->depth_rate_mm_s = b.Positive("depth_rate", o->depth_rate_mm_s);
+  o->speed = b.Positive("speed", o->speed);
+  if (o->speed > 1) b.reader().Fail(b.Get("speed"), b.Field("speed"), "must be in (0, 1]");
+  o->max_edge_mm = b.Positive("max_edge", o->max_edge_mm);
+  o->smoothing_ring_mm = b.NonNegative("smoothing_ring", o->smoothing_ring_mm);
+}
+
+void ReadAwl(const YamlSection& ops, AwlOptions* o) {
+  if (!ops.Has("awl")) return;
+  const YamlSection a(ops.reader(), ops.Get("awl"), ops.Field("awl"),
+                      {"method", "max_angle", "max_edge", "min_depth"});
+  o->method = static_cast<int>(a.Integer("method", o->method, 1));
+  if (o->method > 2) a.reader().Fail(a.Get("method"), a.Field("method"), "expected 1 or 2");
+  o->max_angle_deg = a.Positive("max_angle", o->max_angle_deg);
+  if (o->max_angle_deg >= 90) {
+    a.reader().Fail(a.Get("max_angle"), a.Field("max_angle"), "must be < 90 (degrees)");
+  }
+  o->max_edge_mm = a.Positive("max_edge", o->max_edge_mm);
+  o->min_depth_mm = a.Positive("min_depth", o->min_depth_mm);
+}
+
+// The anchor's sutures must be threads of the scenario that nothing else holds in place.
+void ReadAnchor(const YamlSection& ops, const Model& m, AnchorOptions* o) {
+  if (!ops.Has("anchor")) return;
+  const YamlSection a(ops.reader(), ops.Get("anchor"), ops.Field("anchor"),
+                      {"min_hole_depth", "capture_radius", "stiffness", "sutures"});
+  o->min_hole_depth_mm = a.Positive("min_hole_depth", o->min_hole_depth_mm);
+  o->capture_radius_mm = a.Positive("capture_radius", o->capture_radius_mm);
+  o->stiffness_n_per_mm = a.Positive("stiffness", o->stiffness_n_per_mm);
+  const YAML::Node list = a.Sequence("sutures", false);
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string field = IndexedField(a.Field("sutures"), i);
+    if (!list[i].IsScalar() || list[i].Scalar().empty()) {
+      a.reader().Fail(list[i], field, "expected a thread name");
+    }
+    const std::string name = list[i].Scalar();
+    const int t = m.FindThread(name);
+    if (t < 0) a.reader().Fail(list[i], field, "no thread named '" + name + "' in bodies");
+    if (!m.threads[static_cast<std::size_t>(t)].fixed_nodes.empty()) {
+      a.reader().Fail(list[i], field,
+                      "thread '" + name +
+                          "' has fixed_nodes; a suture the anchor carries is held by the "
+                          "anchor, not fixed (remove its fixed_nodes)");
+    }
+    o->sutures.push_back(name);
+  }
+}
+
 }  // namespace
 
 void ReadOperations(const YamlSection& root, Model* m) {
   if (!root.Has("operations")) return;
   OperationOptions& o = m->operations;
-  const YamlSection ops(root.reader(), root.Get("operations"), "operations",
-                        {"scissors", "cutter", "shaver", "electrocautery"});
+  const YamlSection ops(
+      root.reader(), root.Get("operations"), "operations",
+      {"scissors", "cutter", "shaver", "electrocautery", "burr", "awl", "anchor"});
   ReadScissors(ops, &o.scissors);
   ReadCutter(ops, &o.cutter);
   ReadSoftShaving(ops, "shaver", &o.shaver);
   ReadSoftShaving(ops, "electrocautery", &o.electrocautery);
+  ReadBurr(ops, &o.burr);
+  ReadAwl(ops, &o.awl);
+  ReadAnchor(ops, *m, &o.anchor);
 }
 
 }  // namespace arthrosim::io

@@ -233,6 +233,66 @@ double CarveSphere(BoneState* bone, const Vec3& center, double radius_mm, double
   return Reshape(bone, region, max_depth_mm, target, view, options);
 }
 
+double SmoothRim(BoneState* bone, const Vec3& center, double inner_mm, double outer_mm,
+                 int iterations) {
+  if (!(outer_mm > inner_mm) || iterations <= 0) return 0.0;
+  mesh::TriMesh& m = bone->surface;
+  const int n = static_cast<int>(m.nodes.cols());
+  auto in_band = [&](const Vec3& p) {
+    const double d = (p - center).norm();
+    return d >= inner_mm && d <= outer_mm;
+  };
+  // Triangles touching the band, and the ring neighbours of each band vertex (sorted, unique).
+  const Region region{center, outer_mm};
+  std::vector<int> tris;
+  std::vector<std::vector<int>> nbr(static_cast<std::size_t>(n));
+  std::vector<std::vector<int>> vtris(static_cast<std::size_t>(n));
+  for (int t = 0; t < static_cast<int>(m.tris.size()); ++t) {
+    if (!TriNearRegion(m.nodes, m.tris[t], region)) continue;
+    tris.push_back(t);
+    for (int k = 0; k < 3; ++k) {
+      const int a = m.tris[t][k];
+      vtris[a].push_back(t);
+      nbr[a].push_back(m.tris[t][(k + 1) % 3]);
+      nbr[a].push_back(m.tris[t][(k + 2) % 3]);
+    }
+  }
+  const double v_before = EnclosedVolume(m);
+  bool changed = false;
+  for (int it = 0; it < iterations; ++it) {
+    const Points old = m.nodes;
+    for (int i = 0; i < n; ++i) {
+      if (nbr[i].empty() || !in_band(old.col(i))) continue;
+      std::vector<int>& ring = nbr[i];
+      std::sort(ring.begin(), ring.end());
+      ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+      Vec3 mean = Vec3::Zero();
+      for (int j : ring) mean += old.col(j);
+      mean /= static_cast<double>(ring.size());
+      Vec3 normal = Vec3::Zero();
+      for (int t : vtris[i]) normal += TriNormal(old, m.tris[t]);
+      const Vec3 d = 0.5 * (mean - old.col(i));
+      if (!(normal.dot(d) < 0)) continue;  // outward or tangential: would add or only slide
+      m.nodes.col(i) = old.col(i) + d;
+      // Keep the move only if no incident triangle turns over.
+      bool flips = false;
+      for (int t : vtris[i]) {
+        const double before = TriNormal(old, m.tris[t]).dot(TriNormal(m.nodes, m.tris[t]));
+        flips = flips || !(before > 0);
+      }
+      if (flips) {
+        m.nodes.col(i) = old.col(i);
+      } else {
+        changed = true;
+      }
+    }
+  }
+  if (changed) ++bone->revision;
+  const double removed = v_before - EnclosedVolume(m);
+  bone->removed_volume_mm3 += removed;
+  return removed;
+}
+
 double PushAlong(BoneState* bone, const Vec3& tip, const Vec3& axis, double radius_mm,
                  double depth_mm, const BoneCarveOptions& options) {
   if (!(radius_mm > 0) || !(depth_mm > 0) || !(axis.norm() > 0)) return 0.0;

@@ -37,6 +37,12 @@ void MeshBuilder::Tri(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
   mesh_->indices.insert(mesh_->indices.end(), {a, b, c});
 }
 
+void MeshBuilder::Triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 n = (b - a).cross(c - a).normalized();
+  const std::uint32_t i = Add(a, n), j = Add(b, n), k = Add(c, n);
+  Tri(i, j, k);
+}
+
 void MeshBuilder::Cylinder(const Vec3& p0, const Vec3& p1, double r0, double r1, int sides,
                            bool cap0, bool cap1) {
   const Vec3 axis = (p1 - p0).normalized();

@@ -23,6 +23,8 @@ class MeshBuilder {
   /// (from +x, about +z) is within `gap_half_angle` of `gap_center` and z inside [gz0, gz1].
   void CylinderWithWindow(double z0, double z1, double r, int sides, int rings, double gap_center,
                           double gap_half_angle, double gz0, double gz1);
+  /// Flat triangle (a, b, c), counter-clockwise seen from its front (normal (b-a)x(c-a)).
+  void Triangle(const Vec3& a, const Vec3& b, const Vec3& c);
   /// UV sphere (or ellipsoid with `scale`) centred at c.
   void Sphere(const Vec3& c, const Vec3& radii, int stacks, int slices);
   /// Torus in the plane orthogonal to `axis` through c.

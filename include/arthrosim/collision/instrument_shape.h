@@ -1,33 +1,21 @@
 #pragma once
-// Collision geometry of the instruments: each working part is a rounded simplex (a sphere, a
-// capsule or a thin triangle with a half-thickness) in the tool frame (tip at the origin, shaft
-// along -z, jaws opening in the x-z plane), sized from InstrumentModel and opened by the jaw
-// value. The instruments layer uses the same parts (blade triangles for cutting, burr sphere for
-// bone removal...), so there is one definition of where an instrument is.
+// Collision geometry of the instruments: the parts of core/instrument_geometry.h (the one
+// description that rendering draws too) as rounded simplices for the proximity queries. The
+// instruments layer uses the same parts (blade triangles for cutting, burr sphere for bone
+// removal...), so there is one definition of where an instrument is.
 #include <cstdint>
 #include <vector>
 
 #include "arthrosim/collision/proximity.h"
+#include "arthrosim/core/instrument_geometry.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 
 namespace arthrosim::collision {
 
-/// What a primitive is, so instruments can pick their working part.
-enum class ToolPart : std::uint8_t {
-  kShaft,         ///< capsule along -z behind the working part
-  kBlade,         ///< scissors / cutter blade triangle (cutting edge = v0-v1)
-  kJaw,           ///< grasper / retriever / scorpion jaw triangle
-  kBurr,          ///< burr sphere
-  kShaverTip,     ///< shaver outer tube end (capsule)
-  kShaverWindow,  ///< shaver cutting window (triangle on the tube side; no contact)
-  kCauteryTip,    ///< electrocautery probe (capsule)
-  kAwlTip,        ///< awl point (thin capsule)
-  kAwlBody,       ///< awl body behind the point (capsule)
-  kHook,          ///< crochet hook bend (capsule)
-  kPusherTip,     ///< knot-pusher end (capsule)
-  kNeedle,        ///< scorpion needle (thin capsule, out only when the jaw is closed)
-};
+/// What a primitive is (the parts of core/instrument_geometry.h).
+using ToolPart = ::arthrosim::ToolPart;
+using ::arthrosim::MaxOpeningDeg;
 
 /// One rounded simplex of an instrument.
 struct ToolPrimitive {
@@ -37,9 +25,6 @@ struct ToolPrimitive {
   double radius_mm = 0;   ///< rounding: sphere / capsule radius, blade half-thickness
   bool contacts = true;   ///< false: geometry for the instrument logic only
 };
-
-/// Maximum opening angle between the two jaws/blades at jaw = 0 (fully open), degrees.
-double MaxOpeningDeg(InstrumentKind kind);
 
 /// The primitives of an instrument in the tool frame for a jaw value in [0, 1] (0 open, 1
 /// closed). The order and count depend only on the kind, never on jaw (so two poses of the same

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/operation_options.h"
 #include "arthrosim/core/types.h"
 #include "arthrosim/mesh/tet_mesh.h"
 
@@ -147,49 +148,6 @@ struct ContactOptions {
   double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides), N/mm
   double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point, N/mm
   double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the kinematic tool, per part, N/mm
-};
-
-/// How the scissors cut (scenario `operations.scissors.mode`).
-enum class CutMode : std::uint8_t {
-  kRemove,  ///< delete the tets the blade triangle crosses (the paper's real-time mode)
-  kSplit,   ///< split them along the blade plane (new nodes; volume conserved)
-};
-
-/// Scissors (scenario `operations.scissors`; docs/operations.md).
-struct ScissorsOptions {
-  CutMode mode = CutMode::kRemove;
-  /// Split mode: a cut passing within this fraction of an edge's length of one of its ends
-  /// snaps to that node (no sliver elements), in (0, 0.5).
-  double snap_fraction = 0.1;
-  /// Smallest jaw increase per step that counts as closing (0 open ... 1 closed).
-  double min_jaw_step = 1e-6;
-};
-
-/// Cutter (scenario `operations.cutter`).
-struct CutterOptions {
-  /// A thread segment within this distance (mm) of the triangle between the blades is "between
-  /// the blades" (blade half-thickness + thread radius + slack).
-  double reach_mm = 1.0;
-  /// The blades meet (and cut) on the step the jaw closes past this value (0 open ... 1 closed):
-  /// one cut per closing stroke.
-  double cut_at_jaw = 0.9;
-};
-
-/// Shaver and electrocautery (scenario `operations.shaver`, `operations.electrocautery`).
-struct SoftShavingOptions {
-  double rate_mm_s = 2.0;  ///< depth removed per second of contact at a touched vertex, mm/s
-  double reach_mm = 0.5;   ///< surface vertices this close (mm) to the tip are touched
-  double smoothing = 0.5;  ///< share (0..1) of the mean inward move passed to ring neighbours
-  double min_volume_fraction = 0.2;  ///< a tet below this share of its initial rest volume goes
-};
-
-/// Thresholds of the operations (scenario section `operations:`; defaults documented in
-/// docs/operations.md, in mm and s).
-struct OperationOptions {
-  ScissorsOptions scissors;
-  CutterOptions cutter;
-  SoftShavingOptions shaver;
-  SoftShavingOptions electrocautery{1.0, 0.3, 0.5, 0.2};
 };
 
 /// Run options.

@@ -36,6 +36,9 @@ struct SoftBodyState {
 struct BoneState {
   mesh::TriMesh surface;          ///< current closed surface, mm
   double removed_volume_mm3 = 0;  ///< initial enclosed volume minus current, mm^3
+  /// Removed volume booked per Model::regions entry (a carve counts for every region of this
+  /// bone whose box holds its contact centre), plus one last entry for removal in none, mm^3.
+  std::vector<double> removed_by_region_mm3;
   /// Goes up with every change of `surface` (code that edits it must increment it), so
   /// observers (collision trees) compare a number instead of the whole surface each step.
   std::uint64_t revision = 0;
@@ -106,6 +109,28 @@ struct ToolContact {
   Vec3 position_mm = Vec3::Zero();  ///< contact point (force-weighted mean), mm
 };
 
+/// A pilot hole made by the awl in a bone (awl_drill.cpp).
+struct BoneHole {
+  std::int32_t bone = -1;        ///< bone index in the Model
+  std::int32_t tool_slot = -1;   ///< slot of the awl that made it
+  Vec3 entry_mm = Vec3::Zero();  ///< where the hole axis crosses the original surface, mm
+  Vec3 axis = Vec3::UnitZ();     ///< unit, into the bone
+  double depth_mm = 0;           ///< deepest point below the entry along the axis, mm
+  double diameter_mm = 0;        ///< at the entry, mm
+  double angle_deg = 0;          ///< between the axis and the bone surface (90 = perpendicular)
+  std::uint8_t open = 0;         ///< 1 while the awl is still in it (the hole can deepen)
+};
+
+/// A suture anchor seated in a hole (anchor.cpp): a rigid body fixed to the bone.
+struct AnchorState {
+  std::int32_t bone = -1;
+  std::int32_t hole = -1;           ///< index into State::holes
+  Vec3 position_mm = Vec3::Zero();  ///< eyelet at the bottom of the hole, mm
+  Vec3 axis = Vec3::UnitZ();        ///< insertion direction, unit
+  double depth_mm = 0;              ///< below the cortex (the hole's entry), mm
+  double angle_deg = 0;             ///< insertion angle to the bone surface, deg
+};
+
 inline constexpr int kToolSlots = 2;
 
 struct State {
@@ -121,6 +146,8 @@ struct State {
   std::uint64_t rng_state = 0;             ///< splitmix64 state, seeded from Model::options.seed
   std::vector<Event> events;               ///< events of the last step only
   std::vector<ToolContact> tool_contacts;  ///< touching (tool, body) pairs, sorted (collision)
+  std::vector<BoneHole> holes;             ///< pilot holes, in creation order
+  std::vector<AnchorState> anchors;        ///< seated anchors, in creation order
 };
 
 struct Model;

@@ -24,6 +24,53 @@ inline constexpr const char* kCamera = "camera";
 inline constexpr const char* kConstraints = "constraints";
 inline constexpr const char* kToolContacts = "tool_contacts";
 inline constexpr const char* kMeta = "meta";
+inline constexpr const char* kHoles = "holes";      ///< awl pilot holes (State::holes)
+inline constexpr const char* kAnchors = "anchors";  ///< seated anchors (State::anchors)
+
+/// Columns of a /holes/rows row: bone, tool_slot, entry xyz (mm), axis xyz, depth (mm),
+/// diameter (mm), angle to the surface (deg), open (0/1).
+inline constexpr int kHoleColumns = 12;
+/// Columns of an /anchors/rows row: bone, hole, position xyz (mm), axis xyz, depth below the
+/// cortex (mm), insertion angle (deg).
+inline constexpr int kAnchorColumns = 10;
+
+/// Appends the row of a hole (kHoleColumns values) to *rows.
+inline void AppendHoleRow(const BoneHole& h, std::vector<double>* rows) {
+  rows->insert(rows->end(),
+               {static_cast<double>(h.bone), static_cast<double>(h.tool_slot), h.entry_mm.x(),
+                h.entry_mm.y(), h.entry_mm.z(), h.axis.x(), h.axis.y(), h.axis.z(), h.depth_mm,
+                h.diameter_mm, h.angle_deg, static_cast<double>(h.open)});
+}
+/// The hole of a row written by AppendHoleRow.
+inline BoneHole HoleFromRow(const double* r) {
+  BoneHole h;
+  h.bone = static_cast<std::int32_t>(r[0]);
+  h.tool_slot = static_cast<std::int32_t>(r[1]);
+  h.entry_mm = Vec3(r[2], r[3], r[4]);
+  h.axis = Vec3(r[5], r[6], r[7]);
+  h.depth_mm = r[8];
+  h.diameter_mm = r[9];
+  h.angle_deg = r[10];
+  h.open = static_cast<std::uint8_t>(r[11]);
+  return h;
+}
+/// Appends the row of an anchor (kAnchorColumns values) to *rows.
+inline void AppendAnchorRow(const AnchorState& a, std::vector<double>* rows) {
+  rows->insert(rows->end(), {static_cast<double>(a.bone), static_cast<double>(a.hole),
+                             a.position_mm.x(), a.position_mm.y(), a.position_mm.z(), a.axis.x(),
+                             a.axis.y(), a.axis.z(), a.depth_mm, a.angle_deg});
+}
+/// The anchor of a row written by AppendAnchorRow.
+inline AnchorState AnchorFromRow(const double* r) {
+  AnchorState a;
+  a.bone = static_cast<std::int32_t>(r[0]);
+  a.hole = static_cast<std::int32_t>(r[1]);
+  a.position_mm = Vec3(r[2], r[3], r[4]);
+  a.axis = Vec3(r[5], r[6], r[7]);
+  a.depth_mm = r[8];
+  a.angle_deg = r[9];
+  return a;
+}
 
 /// The groups below /<kind> (e.g. "bodies") in Model order (their "index" attribute); empty if
 /// the file has no such group.

@@ -46,6 +46,14 @@ struct BoneCarveOptions {
 double CarveSphere(BoneState* bone, const Vec3& center, double radius_mm, double max_depth_mm,
                    const BoneCarveOptions& options = {});
 
+/// Smooths the rim of a crater: every vertex at distance in [inner_mm, outer_mm] from `center`
+/// moves toward the mean of its neighbours, only inward (material is never added) and only if
+/// no incident triangle flips, `iterations` times. Removes the step edge a carve leaves where
+/// the tool sphere meets the untouched surface. Returns the volume removed, mm^3 (>= 0 up to
+/// rounding); updates removed_volume_mm3 and revision.
+double SmoothRim(BoneState* bone, const Vec3& center, double inner_mm, double outer_mm,
+                 int iterations = 2);
+
 /// Awl push: the tip at `tip` pointing along unit `axis` (into the bone) displaces surface
 /// vertices at distance rho < radius from the axis and axial coordinate s in [-radius, f(rho))
 /// to s = f(rho) = depth (1 - (rho / radius)^2): a concave hole deepest on the axis. Returns the

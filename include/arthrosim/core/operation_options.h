@@ -1,0 +1,81 @@
+#pragma once
+// Thresholds of the instruments' operations: the scenario's optional `operations:` section
+// (docs/scenario-format.md, docs/operations.md), part of the immutable Model. Lengths in mm,
+// times in s, as the paper's thresholds read in centimetres (0.2 -> 2 mm).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace arthrosim {
+
+/// How the scissors cut (scenario `operations.scissors.mode`).
+enum class CutMode : std::uint8_t {
+  kRemove,  ///< delete the tets the blade triangle crosses (the paper's real-time mode)
+  kSplit,   ///< split them along the blade plane (new nodes; volume conserved)
+};
+
+/// Scissors (scenario `operations.scissors`; docs/operations.md).
+struct ScissorsOptions {
+  CutMode mode = CutMode::kRemove;
+  /// Split mode: a cut passing within this fraction of an edge's length of one of its ends
+  /// snaps to that node (no sliver elements), in (0, 0.5).
+  double snap_fraction = 0.1;
+  /// Smallest jaw increase per step that counts as closing (0 open ... 1 closed).
+  double min_jaw_step = 1e-6;
+};
+
+/// Cutter (scenario `operations.cutter`).
+struct CutterOptions {
+  /// A thread segment within this distance (mm) of the triangle between the blades is "between
+  /// the blades" (blade half-thickness + thread radius + slack).
+  double reach_mm = 1.0;
+  /// The blades meet (and cut) on the step the jaw closes past this value (0 open ... 1 closed):
+  /// one cut per closing stroke.
+  double cut_at_jaw = 0.9;
+};
+
+/// Shaver and electrocautery (scenario `operations.shaver`, `operations.electrocautery`).
+struct SoftShavingOptions {
+  double rate_mm_s = 2.0;  ///< depth removed per second of contact at a touched vertex, mm/s
+  double reach_mm = 0.5;   ///< surface vertices this close (mm) to the tip are touched
+  double smoothing = 0.5;  ///< share (0..1) of the mean inward move passed to ring neighbours
+  double min_volume_fraction = 0.2;  ///< a tet below this share of its initial rest volume goes
+};
+
+/// Burr (scenario `operations.burr`): bone removal while button 1 is held in contact.
+struct BurrOptions {
+  double depth_rate_mm_s = 1.0;    ///< surface recession speed at full speed on hardness 1, mm/s
+  double speed = 1.0;              ///< burr speed as a fraction of full speed, (0, 1]
+  double max_edge_mm = 0.5;        ///< bone edges near the burr are split down to this, mm
+  double smoothing_ring_mm = 0.5;  ///< width of the crater rim that is smoothed, mm
+};
+
+/// Awl (scenario `operations.awl`): the pilot hole.
+struct AwlOptions {
+  int method = 2;             ///< 1: contact vertex + neighbours; 2: axis-aligned hole
+  double max_angle_deg = 60;  ///< method 2: tool axis vs tip->contact direction, deg
+  double max_edge_mm = 0.25;  ///< bone edges near the point are split down to this, mm
+  double min_depth_mm = 0.2;  ///< a hole is recorded once it is this deep, mm
+};
+
+/// Anchor (scenario `operations.anchor`): seated with button 2 of the awl in a hole.
+struct AnchorOptions {
+  double min_hole_depth_mm = 3.0;      ///< a hole must be at least this deep, mm
+  double capture_radius_mm = 3.0;      ///< awl tip within this of a hole's axis seats it, mm
+  double stiffness_n_per_mm = 2000.0;  ///< suture limb to anchor spring, N/mm
+  std::vector<std::string> sutures;    ///< threads whose node 0 the anchor carries
+};
+
+/// Thresholds of the instrument operations (scenario section `operations:`; defaults documented
+/// in docs/operations.md, in mm and s). One sub-struct per operation.
+struct OperationOptions {
+  ScissorsOptions scissors;
+  CutterOptions cutter;
+  SoftShavingOptions shaver;
+  SoftShavingOptions electrocautery{1.0, 0.3, 0.5, 0.2};
+  BurrOptions burr;
+  AwlOptions awl;
+  AnchorOptions anchor;
+};
+
+}  // namespace arthrosim

@@ -1,0 +1,425 @@
+// Burr, awl and anchor on a 30 x 30 x 16 mm bone box (tests/testdata/scenes/bone_ops.yaml):
+// outcomes measured on the surface (volumes, moved vertices, hole shape, anchor position).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "arthrosim/collision/proximity.h"
+#include "arthrosim/core/parallel.h"
+#include "arthrosim/core/units.h"
+#include "arthrosim/instruments/instruments.h"
+#include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/physics/bone_surface.h"
+#include "arthrosim/sim/step.h"
+#include "arthrosim/sim/workspace.h"
+
+namespace arthrosim::instruments {
+namespace {
+
+constexpr double kTop = 16;  // the box's top face, z (mm)
+
+Model BoneModelScene() {
+  return io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) +
+                          "/tests/testdata/scenes/bone_ops.yaml");
+}
+
+// Tool pose with the tip at `tip` and +z (forward) along `dir`.
+Pose Aim(const Vec3& tip, const Vec3& dir) {
+  Pose p;
+  p.position_mm = tip;
+  p.orientation = Quat::FromTwoVectors(Vec3::UnitZ(), dir.normalized());
+  return p;
+}
+
+// One instruments stage at the next step (the clock advanced first, as in sim::Step).
+void Act(const Model& m, State* s) {
+  s->step += 1;
+  s->time_s = static_cast<double>(s->step) * m.options.dt_s;
+  s->events.clear();
+  InstrumentScratch scratch;
+  ApplyInstruments(m, StepContext{}, s, &scratch);
+}
+
+// Distance from p to the burr centre path (polyline of centres), mm.
+double DistanceToPath(const Vec3& p, const std::vector<Vec3>& path) {
+  double best = 1e300;
+  for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+    best = std::min(best, std::sqrt(collision::PointSegment(p, path[i], path[i + 1]).dist2));
+  }
+  if (path.size() == 1) best = (p - path[0]).norm();
+  return best;
+}
+
+// True when p lies on the original box surface (one coordinate on a face plane, within it).
+bool OnBox(const Vec3& p) {
+  const Vec3 lo(40, 0, 0), hi(70, 30, kTop);
+  const bool inside =
+      (p.array() >= lo.array() - 1e-9).all() && (p.array() <= hi.array() + 1e-9).all();
+  bool on_face = false;
+  for (int a = 0; a < 3; ++a) {
+    on_face = on_face || std::abs(p[a] - lo[a]) < 1e-9 || std::abs(p[a] - hi[a]) < 1e-9;
+  }
+  return inside && on_face;
+}
+
+// Pairs of triangles without a shared vertex that intersect, among those near `center`.
+int SelfIntersections(const mesh::TriMesh& m, const Vec3& center, double radius) {
+  std::vector<int> near;
+  for (int t = 0; t < static_cast<int>(m.tris.size()); ++t) {
+    const Vec3 c =
+        (m.nodes.col(m.tris[t][0]) + m.nodes.col(m.tris[t][1]) + m.nodes.col(m.tris[t][2])) / 3.0;
+    if ((c - center).norm() < radius) near.push_back(t);
+  }
+  int hits = 0;
+  for (std::size_t i = 0; i < near.size(); ++i) {
+    for (std::size_t j = i + 1; j < near.size(); ++j) {
+      const mesh::Tri& a = m.tris[near[i]];
+      const mesh::Tri& b = m.tris[near[j]];
+      bool shared = false;
+      for (int x : a) shared = shared || std::find(b.begin(), b.end(), x) != b.end();
+      if (shared) continue;
+      const collision::Simplex sa =
+          collision::TriangleSimplex(m.nodes.col(a[0]), m.nodes.col(a[1]), m.nodes.col(a[2]));
+      const collision::Simplex sb =
+          collision::TriangleSimplex(m.nodes.col(b[0]), m.nodes.col(b[1]), m.nodes.col(b[2]));
+      if (collision::TriangleTriangle(sa, sb).dist2 == 0) ++hits;
+    }
+  }
+  return hits;
+}
+
+struct BurrRun {
+  State state;
+  std::vector<Vec3> centers;  // burr head centres used
+  std::vector<std::size_t> tri_counts;
+};
+
+// Burrs with the head centre following `center(t)` for `seconds`, button 1 held.
+template <class F>
+BurrRun RunBurr(const Model& m, double seconds, F center) {
+  BurrRun r{MakeInitialState(m), {}, {}};
+  const int burr = m.FindInstrument("burr");
+  const double radius = m.instruments[static_cast<std::size_t>(burr)].tip_radius_mm;
+  r.state.tools[0].instrument = burr;
+  r.state.tools[0].buttons = 1;
+  const int steps = static_cast<int>(std::lround(seconds / m.options.dt_s));
+  for (int i = 0; i < steps; ++i) {
+    const Vec3 c = center(i * m.options.dt_s);
+    // Burr pointing down: the head centre is one radius behind (above) the tip.
+    r.state.tools[0].pose = Aim(c - Vec3(0, 0, radius), Vec3(0, 0, -1));
+    r.centers.push_back(c);
+    Act(m, &r.state);
+    r.tri_counts.push_back(r.state.bones[0].surface.tris.size());
+  }
+  return r;
+}
+
+TEST(Burr, TenSecondsAtOneSpotRemovesBoneOnlyThereAndKeepsTheSurfaceClosed) {
+  const Model m = BoneModelScene();
+  const double v0 = physics::EnclosedVolume(m.bones[0].surface);
+  // Head centre 1 mm above the top face, driven 0.3 mm/s deeper (as the proxy follows the
+  // receding surface): 10 s of continuous burring at x = 47 (the spur region).
+  const BurrRun r = RunBurr(m, 10.0, [](double t) { return Vec3(47, 15, kTop + 1.0 - 0.3 * t); });
+  const BoneState& bone = r.state.bones[0];
+  const physics::WatertightReport w = physics::CheckWatertight(bone.surface);
+  EXPECT_TRUE(w.ok()) << w.boundary_edges << " " << w.nonmanifold_edges << " " << w.degenerate_tris;
+  const double v1 = physics::EnclosedVolume(bone.surface);
+  EXPECT_GT(bone.removed_volume_mm3, 1.0);
+  EXPECT_NEAR(bone.removed_volume_mm3, v0 - v1, 1e-9 * v0);
+  // Nothing outside the swept burr plus the smoothing ring moved off the original surface.
+  const double reach = 2.0 + m.operations.burr.smoothing_ring_mm + 1e-9;
+  int moved_outside = 0, moved_inside = 0;
+  for (int i = 0; i < bone.surface.nodes.cols(); ++i) {
+    const Vec3 p = bone.surface.nodes.col(i);
+    if (OnBox(p)) continue;
+    (DistanceToPath(p, r.centers) > reach ? moved_outside : moved_inside) += 1;
+  }
+  EXPECT_EQ(moved_outside, 0);
+  EXPECT_GT(moved_inside, 20);
+  EXPECT_EQ(SelfIntersections(bone.surface, r.centers.back(), 6.0), 0);
+  // Triangle count bounded: no growth over the last 5 s at the same spot beyond 25 %.
+  EXPECT_LE(r.tri_counts.back(), r.tri_counts[r.tri_counts.size() / 2] * 5 / 4);
+  // All of it booked to the spur region (index 1 in the scenario), none elsewhere.
+  const int spur = m.FindRegion("spur");
+  EXPECT_NEAR(bone.removed_by_region_mm3[static_cast<std::size_t>(spur)], bone.removed_volume_mm3,
+              1e-9 * v0);
+  EXPECT_EQ(bone.removed_by_region_mm3.back(), 0.0);
+}
+
+TEST(Burr, RemovalRateFollowsHardnessAndSimulatedTimeNotStepCount) {
+  Model m = BoneModelScene();
+  auto depth_after = [&](double dt, double hardness) {
+    Model mm = m;
+    mm.options.dt_s = dt;
+    mm.bones[0].hardness = hardness;
+    const BurrRun r = RunBurr(mm, 1.0, [](double) { return Vec3(55, 15, kTop + 0.5); });
+    double lowest = kTop;
+    for (int i = 0; i < r.state.bones[0].surface.nodes.cols(); ++i)
+      lowest = std::min(lowest, r.state.bones[0].surface.nodes(2, i));
+    return kTop - lowest;
+  };
+  // 1 mm/s on hardness 2: 0.5 mm in 1 s, whatever the step.
+  EXPECT_NEAR(depth_after(0.02, 2.0), 0.5, 0.05);
+  EXPECT_NEAR(depth_after(0.005, 2.0), 0.5, 0.05);
+  EXPECT_NEAR(depth_after(0.02, 4.0), 0.25, 0.03);
+}
+
+TEST(Burr, SweptAcrossTheBoxRemovesAlongThePathOnly) {
+  const Model m = BoneModelScene();
+  const double v0 = physics::EnclosedVolume(m.bones[0].surface);
+  const BurrRun r =
+      RunBurr(m, 5.0, [](double t) { return Vec3(44 + 4.4 * t, 15, kTop + 1.2 - 0.1 * t); });
+  const BoneState& bone = r.state.bones[0];
+  EXPECT_TRUE(physics::CheckWatertight(bone.surface).ok());
+  EXPECT_NEAR(bone.removed_volume_mm3, v0 - physics::EnclosedVolume(bone.surface), 1e-9 * v0);
+  EXPECT_GT(bone.removed_volume_mm3, 1.0);
+  int moved_outside = 0;
+  for (int i = 0; i < bone.surface.nodes.cols(); ++i) {
+    const Vec3 p = bone.surface.nodes.col(i);
+    if (!OnBox(p) && DistanceToPath(p, r.centers) > 2.5 + 1e-9) ++moved_outside;
+  }
+  EXPECT_EQ(moved_outside, 0);
+  // The path crosses from spur (x < 55) into footprint: both regions get some.
+  EXPECT_GT(bone.removed_by_region_mm3[static_cast<std::size_t>(m.FindRegion("spur"))], 0.1);
+  EXPECT_GT(bone.removed_by_region_mm3[static_cast<std::size_t>(m.FindRegion("footprint"))], 0.1);
+  EXPECT_EQ(SelfIntersections(bone.surface, Vec3(55, 15, kTop), 14.0), 0);
+}
+
+TEST(Burr, NothingHappensWithoutButtonOne) {
+  const Model m = BoneModelScene();
+  State s = MakeInitialState(m);
+  s.tools[0].instrument = m.FindInstrument("burr");
+  s.tools[0].pose = Aim(Vec3(55, 15, kTop - 1), Vec3(0, 0, -1));
+  State before = s;
+  Act(m, &s);
+  before.step = s.step;
+  before.time_s = s.time_s;
+  EXPECT_TRUE(BitwiseEqual(before, s));
+}
+
+// The awl driven along `dir` through the entry point `entry` on the top face: from 1 mm before
+// it to `depth` past it in `steps` steps, then back out above the surface.
+State DrillHole(const Model& m, const Vec3& entry, const Vec3& dir, double depth, int steps) {
+  State s = MakeInitialState(m);
+  s.tools[0].instrument = m.FindInstrument("awl");
+  const Vec3 u = dir.normalized();
+  for (int i = 0; i <= steps; ++i) {
+    const double d = -1.0 + (depth + 1.0) * i / steps;
+    s.tools[0].pose = Aim(entry + d * u, u);
+    Act(m, &s);
+  }
+  s.tools[0].pose = Aim(entry - 3.0 * u, u);
+  Act(m, &s);
+  return s;
+}
+
+struct HoleShape {
+  double depth = 0, diameter = 0, angle_deg = 0;
+};
+
+// Measured from the surface: deepest point along the commanded axis, widest moved vertex from
+// the axis, and the angle between the top face and the hole's own axis (entry -> centroid of
+// the vertices in the deepest fifth of the hole, which lies on the axis of a symmetric hole).
+HoleShape Measure(const mesh::TriMesh& s, const Vec3& entry, const Vec3& dir) {
+  const Vec3 u = dir.normalized();
+  HoleShape h;
+  Vec3 deepest = entry;
+  double rho_max = 0;
+  for (int i = 0; i < s.nodes.cols(); ++i) {
+    const Vec3 p = s.nodes.col(i);
+    if (OnBox(p)) continue;
+    const Vec3 d = p - entry;
+    const double along = d.dot(u);
+    rho_max = std::max(rho_max, (d - along * u).norm());
+    if (along > h.depth) {
+      h.depth = along;
+      deepest = p;
+    }
+  }
+  h.diameter = 2 * rho_max;
+  Vec3 sum = Vec3::Zero();
+  int count = 0;
+  for (int i = 0; i < s.nodes.cols(); ++i) {
+    const Vec3 p = s.nodes.col(i);
+    if (!OnBox(p) && (p - entry).dot(u) >= 0.8 * h.depth) {
+      sum += p;
+      ++count;
+    }
+  }
+  const Vec3 bottom = count > 0 ? Vec3(sum / count) : deepest;
+  h.angle_deg = std::asin((entry - bottom).normalized().z()) / units::kDegToRad;
+  return h;
+}
+
+TEST(Awl, HoleMatchesTheToolAndTheCommandedAngle) {
+  const Model m = BoneModelScene();
+  const double radius =
+      m.instruments[static_cast<std::size_t>(m.FindInstrument("awl"))].tip_radius_mm;
+  for (const double angle_deg : {45.0, 60.0, 90.0}) {
+    const double a = angle_deg * units::kDegToRad;
+    const Vec3 dir(std::cos(a), 0, -std::sin(a));
+    const Vec3 entry(52, 15, kTop);
+    const State s = DrillHole(m, entry, dir, 5.0, 50);
+    const HoleShape h = Measure(s.bones[0].surface, entry, dir);
+    EXPECT_NEAR(h.depth, 5.0, 0.5) << angle_deg;
+    EXPECT_NEAR(h.diameter, 2 * radius, 0.2 * radius) << angle_deg;
+    EXPECT_NEAR(h.angle_deg, angle_deg, 2.0) << angle_deg;
+    EXPECT_TRUE(physics::CheckWatertight(s.bones[0].surface).ok());
+    // The record and the event agree with the measurement.
+    ASSERT_EQ(s.holes.size(), 1u) << angle_deg;
+    EXPECT_NEAR(s.holes[0].depth_mm, h.depth, 0.5);
+    EXPECT_NEAR(s.holes[0].angle_deg, angle_deg, 1.0);
+    EXPECT_NEAR((s.holes[0].entry_mm - entry).norm(), 0.0, 0.3);
+    EXPECT_EQ(s.holes[0].open, 0);
+    ASSERT_EQ(s.events.size(), 1u);
+    EXPECT_EQ(s.events[0].kind, "hole");
+    EXPECT_NE(s.events[0].detail.find("depth_mm="), std::string::npos);
+  }
+}
+
+TEST(Awl, GlancingToolMakesNoHole) {
+  const Model m = BoneModelScene();
+  const double a = 15 * units::kDegToRad;  // 75 deg off the surface normal > max_angle 60
+  const State s = DrillHole(m, Vec3(52, 15, kTop), Vec3(std::cos(a), 0, -std::sin(a)), 3.0, 30);
+  EXPECT_TRUE(s.holes.empty());
+  EXPECT_EQ(s.bones[0].removed_volume_mm3, 0.0);
+}
+
+TEST(Awl, MethodOneDisplacesTheContactVertexWithItsNeighbours) {
+  Model m = BoneModelScene();
+  m.operations.awl.method = 1;
+  const double v0 = physics::EnclosedVolume(m.bones[0].surface);
+  // Straight down onto the grid vertex (54, 16): it and its six neighbours go 2 mm down.
+  const State s = DrillHole(m, Vec3(54, 16, kTop), Vec3(0, 0, -1), 2.0, 20);
+  const mesh::TriMesh& surf = s.bones[0].surface;
+  int down = 0;
+  for (int i = 0; i < surf.nodes.cols(); ++i) {
+    if (std::abs(surf.nodes(2, i) - (kTop - 2.0)) < 1e-9) ++down;
+  }
+  EXPECT_EQ(down, 7);
+  EXPECT_TRUE(physics::CheckWatertight(surf).ok());
+  EXPECT_NEAR(s.bones[0].removed_volume_mm3, v0 - physics::EnclosedVolume(surf), 1e-9 * v0);
+}
+
+// Drills a 45 deg hole 5 mm deep, then presses button 2 with the tip still in it.
+State SeatAnchorAt45(const Model& m) {
+  const double a = 45 * units::kDegToRad;
+  const Vec3 u(std::cos(a), 0, -std::sin(a));
+  const Vec3 entry(52, 15, kTop);
+  State s = MakeInitialState(m);
+  s.tools[0].instrument = m.FindInstrument("awl");
+  for (int i = 0; i <= 40; ++i) {
+    s.tools[0].pose = Aim(entry + (-1.0 + 6.0 * i / 40) * u, u);
+    Act(m, &s);
+  }
+  s.tools[0].buttons = 2;
+  Act(m, &s);
+  s.tools[0].buttons = 0;
+  return s;
+}
+
+TEST(Anchor, SeatsAtTheBottomOfTheHoleWithItsTwoSutures) {
+  const Model m = BoneModelScene();
+  const State s0 = MakeInitialState(m);
+  for (const ThreadState& t : s0.threads) {  // not in the scene before the anchor
+    EXPECT_TRUE(std::all_of(t.node_alive.begin(), t.node_alive.end(), [](auto a) { return !a; }));
+  }
+  const State s = SeatAnchorAt45(m);
+  ASSERT_EQ(s.anchors.size(), 1u);
+  const AnchorState& a = s.anchors[0];
+  EXPECT_NEAR(a.depth_mm, 5.0, 1e-9);
+  EXPECT_NEAR(a.angle_deg, 45.0, 1.0);
+  const Vec3 bottom = s.holes[0].entry_mm + 5.0 * s.holes[0].axis;
+  EXPECT_LT((a.position_mm - bottom).norm(), 1e-9);
+  int springs = 0;
+  for (const SpringConstraint& c : s.constraints) springs += c.tag == "anchor";
+  EXPECT_EQ(springs, 2);
+  for (const ThreadState& t : s.threads) {
+    EXPECT_TRUE(std::all_of(t.node_alive.begin(), t.node_alive.end(), [](auto v) { return v; }));
+    EXPECT_LT((t.x.col(0) - a.position_mm).norm(), 0.31);
+  }
+  bool hole_event = false, anchor_event = false;
+  for (const Event& e : s.events) {
+    hole_event = hole_event || e.kind == "hole";
+    anchor_event = anchor_event || e.kind == "anchor";
+  }
+  EXPECT_TRUE(hole_event);
+  EXPECT_TRUE(anchor_event);
+}
+
+// Runs the full step with the seated anchor while a spring pulls suture_a's free end with
+// ~10 N; returns the largest distance of its first node from the anchor eyelet and the pull.
+std::pair<double, double> PullSuture(const Model& m, int threads) {
+  SetThreadCount(threads);
+  State s = SeatAnchorAt45(m);
+  s.tools[0].instrument = -1;
+  const int t = m.FindThread("suture_a");
+  const int last = static_cast<int>(s.threads[static_cast<std::size_t>(t)].x.cols()) - 1;
+  Vec3 eyelet = Vec3::Zero();
+  for (const SpringConstraint& c : s.constraints) {
+    if (c.tag == "anchor" && c.a.index == t) eyelet = c.b.offset_mm;
+  }
+  const Vec3 end0 = s.threads[static_cast<std::size_t>(t)].x.col(last);
+  SpringConstraint pull;
+  pull.id = s.next_constraint_id++;
+  pull.tag = "test_pull";
+  pull.a.kind = ConstraintEnd::Kind::kThread;
+  pull.a.index = t;
+  pull.a.nodes = {last, -1, -1, -1};
+  pull.a.weights = {1, 0, 0, 0};
+  pull.b.kind = ConstraintEnd::Kind::kWorld;
+  pull.b.offset_mm = end0 + Vec3(0, 0, 20);
+  pull.stiffness_n_per_mm = 0.5;  // 10 N at the 20 mm stretch
+  s.constraints.push_back(pull);
+  sim::Workspace ws;
+  sim::BuildWorkspace(m, s, &ws);
+  InputFrame in;
+  double worst = 0, force = 0;
+  for (int i = 0; i < 100; ++i) {
+    sim::Step(m, in, &s, &ws);
+    const ThreadState& th = s.threads[static_cast<std::size_t>(t)];
+    worst = std::max(worst, (th.x.col(0) - eyelet).norm());
+    force = pull.stiffness_n_per_mm * (pull.b.offset_mm - th.x.col(last)).norm();
+  }
+  SetThreadCount(1);
+  return {worst, force};
+}
+
+TEST(Anchor, StaysFixedWhileItsSutureIsPulledWithTenNewtons) {
+  const Model m = BoneModelScene();
+  const auto [worst, force] = PullSuture(m, 1);
+  EXPECT_GT(force, 8.0);
+  EXPECT_LT(force, 10.5);
+  EXPECT_LT(worst, 0.1);
+}
+
+TEST(BoneOps, BitIdenticalWithOneAndTwoThreads) {
+  const Model m = BoneModelScene();
+  std::uint64_t hash[2];
+  for (int k = 0; k < 2; ++k) {
+    SetThreadCount(k + 1);
+    BurrRun r = RunBurr(m, 1.0, [](double t) { return Vec3(47 + 5 * t, 15, kTop + 0.8); });
+    State s = r.state;
+    s.tools[0].instrument = m.FindInstrument("awl");
+    s.tools[0].buttons = 0;
+    const Vec3 u = Vec3(1, 0, -1).normalized();
+    for (int i = 0; i <= 30; ++i) {
+      s.tools[0].pose = Aim(Vec3(60, 15, kTop) + (-1.0 + 5.0 * i / 30) * u, u);
+      Act(m, &s);
+    }
+    s.tools[0].buttons = 2;
+    Act(m, &s);
+    sim::Workspace ws;
+    sim::BuildWorkspace(m, s, &ws);
+    InputFrame in;
+    for (int i = 0; i < 20; ++i) sim::Step(m, in, &s, &ws);
+    hash[k] = HashState(s);
+  }
+  SetThreadCount(1);
+  EXPECT_EQ(hash[0], hash[1]);
+}
+
+}  // namespace
+}  // namespace arthrosim::instruments
