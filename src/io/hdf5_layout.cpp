@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <cstring>
 
+#include "arthrosim/core/state_fields.h"
+
 namespace arthrosim::io::layout {
 namespace {
 
@@ -23,15 +25,20 @@ void Pack(h5::Handle& t, bool packed) {
 }
 
 h5::Handle EndType(bool packed) {
+  const ConstraintEnd end;  // field names from the State field table
   h5::Handle t(H5Tcreate(H5T_COMPOUND, sizeof(ConstraintEndRecord)), H5Tclose);
   h5::Handle i4 = ArrayType(H5T_NATIVE_INT32, 4);
   h5::Handle f4 = ArrayType(H5T_NATIVE_DOUBLE, 4);
   h5::Handle f3 = ArrayType(H5T_NATIVE_DOUBLE, 3);
-  H5Tinsert(t.get(), "kind", offsetof(ConstraintEndRecord, kind), H5T_NATIVE_UINT8);
-  H5Tinsert(t.get(), "index", offsetof(ConstraintEndRecord, index), H5T_NATIVE_INT32);
-  H5Tinsert(t.get(), "nodes", offsetof(ConstraintEndRecord, nodes), i4.get());
-  H5Tinsert(t.get(), "weights", offsetof(ConstraintEndRecord, weights), f4.get());
-  H5Tinsert(t.get(), "offset_mm", offsetof(ConstraintEndRecord, offset_mm), f3.get());
+  H5Tinsert(t.get(), FieldOf(end, end.kind).name, offsetof(ConstraintEndRecord, kind),
+            H5T_NATIVE_UINT8);
+  H5Tinsert(t.get(), FieldOf(end, end.index).name, offsetof(ConstraintEndRecord, index),
+            H5T_NATIVE_INT32);
+  H5Tinsert(t.get(), FieldOf(end, end.nodes).name, offsetof(ConstraintEndRecord, nodes), i4.get());
+  H5Tinsert(t.get(), FieldOf(end, end.weights).name, offsetof(ConstraintEndRecord, weights),
+            f4.get());
+  H5Tinsert(t.get(), FieldOf(end, end.offset_mm).name, offsetof(ConstraintEndRecord, offset_mm),
+            f3.get());
   Pack(t, packed);
   return t;
 }
@@ -39,44 +46,60 @@ h5::Handle EndType(bool packed) {
 }  // namespace
 
 h5::Handle EventType(bool packed) {
+  const Event event;  // field names from the State field table
   h5::Handle t(H5Tcreate(H5T_COMPOUND, sizeof(EventRecord)), H5Tclose);
   h5::Handle kind = StringType(kKindChars);
   h5::Handle name = StringType(kNameChars);
   h5::Handle detail = StringType(kDetailChars);
   h5::Handle f3 = ArrayType(H5T_NATIVE_DOUBLE, 3);
-  H5Tinsert(t.get(), "step", offsetof(EventRecord, step), H5T_NATIVE_INT64);
-  H5Tinsert(t.get(), "time", offsetof(EventRecord, time_s), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t.get(), "kind", offsetof(EventRecord, kind), kind.get());
-  H5Tinsert(t.get(), "tool", offsetof(EventRecord, tool), name.get());
-  H5Tinsert(t.get(), "body", offsetof(EventRecord, body), name.get());
-  H5Tinsert(t.get(), "detail", offsetof(EventRecord, detail), detail.get());
-  H5Tinsert(t.get(), "position", offsetof(EventRecord, position_mm), f3.get());
+  H5Tinsert(t.get(), FieldOf(event, event.step).name, offsetof(EventRecord, step),
+            H5T_NATIVE_INT64);
+  H5Tinsert(t.get(), FieldOf(event, event.time_s).name, offsetof(EventRecord, time_s),
+            H5T_NATIVE_DOUBLE);
+  H5Tinsert(t.get(), FieldOf(event, event.kind).name, offsetof(EventRecord, kind), kind.get());
+  H5Tinsert(t.get(), FieldOf(event, event.tool).name, offsetof(EventRecord, tool), name.get());
+  H5Tinsert(t.get(), FieldOf(event, event.body).name, offsetof(EventRecord, body), name.get());
+  H5Tinsert(t.get(), FieldOf(event, event.detail).name, offsetof(EventRecord, detail),
+            detail.get());
+  H5Tinsert(t.get(), FieldOf(event, event.position_mm).name, offsetof(EventRecord, position_mm),
+            f3.get());
   Pack(t, packed);
   return t;
 }
 
 h5::Handle ConstraintType(bool packed) {
+  const SpringConstraint constraint;  // field names from the State field table
   h5::Handle t(H5Tcreate(H5T_COMPOUND, sizeof(ConstraintRecord)), H5Tclose);
   h5::Handle tag = StringType(kTagChars);
   h5::Handle end = EndType(packed);
-  H5Tinsert(t.get(), "id", offsetof(ConstraintRecord, id), H5T_NATIVE_INT64);
-  H5Tinsert(t.get(), "tag", offsetof(ConstraintRecord, tag), tag.get());
-  H5Tinsert(t.get(), "stiffness", offsetof(ConstraintRecord, stiffness_n_per_mm),
-            H5T_NATIVE_DOUBLE);
-  H5Tinsert(t.get(), "rest_length", offsetof(ConstraintRecord, rest_length_mm), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t.get(), "a", offsetof(ConstraintRecord, a), end.get());
-  H5Tinsert(t.get(), "b", offsetof(ConstraintRecord, b), end.get());
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.id).name, offsetof(ConstraintRecord, id),
+            H5T_NATIVE_INT64);
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.tag).name, offsetof(ConstraintRecord, tag),
+            tag.get());
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.stiffness_n_per_mm).name,
+            offsetof(ConstraintRecord, stiffness_n_per_mm), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.rest_length_mm).name,
+            offsetof(ConstraintRecord, rest_length_mm), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.a).name, offsetof(ConstraintRecord, a),
+            end.get());
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.b).name, offsetof(ConstraintRecord, b),
+            end.get());
   Pack(t, packed);
   return t;
 }
 
 h5::Handle ToolContactType(bool packed) {
+  const ToolContact contact;  // field names from the State field table
   h5::Handle t(H5Tcreate(H5T_COMPOUND, sizeof(ToolContactRecord)), H5Tclose);
   h5::Handle f3 = ArrayType(H5T_NATIVE_DOUBLE, 3);
-  H5Tinsert(t.get(), "tool_slot", offsetof(ToolContactRecord, tool_slot), H5T_NATIVE_INT32);
-  H5Tinsert(t.get(), "body_kind", offsetof(ToolContactRecord, body_kind), H5T_NATIVE_UINT8);
-  H5Tinsert(t.get(), "body", offsetof(ToolContactRecord, body), H5T_NATIVE_INT32);
-  H5Tinsert(t.get(), "position", offsetof(ToolContactRecord, position_mm), f3.get());
+  H5Tinsert(t.get(), FieldOf(contact, contact.tool_slot).name,
+            offsetof(ToolContactRecord, tool_slot), H5T_NATIVE_INT32);
+  H5Tinsert(t.get(), FieldOf(contact, contact.body_kind).name,
+            offsetof(ToolContactRecord, body_kind), H5T_NATIVE_UINT8);
+  H5Tinsert(t.get(), FieldOf(contact, contact.body).name, offsetof(ToolContactRecord, body),
+            H5T_NATIVE_INT32);
+  H5Tinsert(t.get(), FieldOf(contact, contact.position_mm).name,
+            offsetof(ToolContactRecord, position_mm), f3.get());
   Pack(t, packed);
   return t;
 }

@@ -3,21 +3,103 @@
 #include <algorithm>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/io/hdf5.h"
 #include "arthrosim/io/hdf5_layout.h"
+#include "state_datasets.h"
 
 namespace arthrosim::io {
 namespace {
 
 constexpr std::size_t kChunkCache = std::size_t{4} << 20;
 
-Pose PoseFromRow(const double* r) {
-  Pose p;
-  p.position_mm = Vec3(r[0], r[1], r[2]);
-  p.orientation = Quat(r[3], r[4], r[5], r[6]);  // Eigen's constructor order: w x y z
-  return p;
+/// The datasets of an entity's per-frame fields (FieldStore::kFrame), in table order.
+struct FieldsIn {
+  std::vector<h5::Dataset> ds;
+  std::vector<detail::ValueType> types;
+};
+
+template <class S>
+void OpenFields(const h5::Group& g, const S& sample, FieldsIn* out) {
+  VisitFields(sample, [&](const auto& value, const FieldInfo& info) {
+    using T = std::decay_t<decltype(value)>;
+    if (info.store != FieldStore::kFrame) return;
+    if constexpr (detail::kFrameValue<T>) {
+      // Absent in files written before the field existed: read back as its default.
+      out->ds.push_back(g.Exists(info.name) ? g.OpenDataset(info.name, kChunkCache)
+                                            : h5::Dataset());
+      out->types.push_back(detail::TypeOf<T>());
+    }
+  });
+}
+
+/// Reads frame t of one per-frame value (slot k of a per-slot row when slot >= 0); `rows` nodes
+/// or elements for per-node values.
+template <class T>
+void ReadValue(const h5::Dataset& ds, const detail::ValueType& type, hsize_t t, int slot,
+               hsize_t rows, T* value) {
+  std::vector<hsize_t> start{t}, count{1};
+  if (slot >= 0) {
+    start.push_back(static_cast<hsize_t>(slot));
+    count.push_back(1);
+  }
+  if (type.per_node) {
+    start.push_back(0);
+    count.push_back(rows);
+  }
+  if (type.row_vector) {
+    rows = ds.dims()[1];
+    start.push_back(0);
+    count.push_back(rows);
+  }
+  if (type.width > 0) {
+    start.push_back(0);
+    count.push_back(type.width);
+  }
+  if constexpr (std::is_same_v<T, Pose>) {
+    std::array<double, 7> row;
+    ds.Read(start, count, type.mem, row.data());
+    *value = detail::PoseFromRow(row.data());
+  } else if constexpr (std::is_same_v<T, Points>) {
+    value->resize(3, static_cast<Eigen::Index>(rows));
+    ds.Read(start, count, type.mem, value->data());
+  } else if constexpr (std::is_same_v<T, std::vector<std::uint8_t>> ||
+                       std::is_same_v<T, std::vector<double>>) {
+    value->resize(rows);
+    ds.Read(start, count, type.mem, value->data());
+  } else if constexpr (std::is_arithmetic_v<T>) {
+    ds.Read(start, count, type.mem, value);
+  } else {
+    ds.Read(start, count, type.mem, value->data());
+  }
+}
+
+/// Fills the stored fields of `out` from frame t and empties those the file does not keep.
+template <class S>
+void ReadFields(const FieldsIn& in, hsize_t t, int slot, hsize_t nodes, hsize_t elements, S* out) {
+  std::size_t i = 0;
+  VisitFields(*out, [&](auto& value, const FieldInfo& info) {
+    using T = std::decay_t<decltype(value)>;
+    if (info.store == FieldStore::kNone) {
+      if constexpr (std::is_same_v<T, Points>) value.resize(3, 0);
+      return;
+    }
+    if (info.store != FieldStore::kFrame) return;
+    if constexpr (detail::kFrameValue<T>) {
+      const hsize_t rows = info.dim == FieldDim::kElements ? elements : nodes;
+      if (!in.ds[i].valid()) {
+        value = T{};
+      } else {
+        ReadValue(in.ds[i], in.types[i], t, slot, rows, &value);
+      }
+      if constexpr (std::is_same_v<T, std::vector<std::uint8_t>>) {
+        if (info.sparse && std::find(value.begin(), value.end(), 1) == value.end()) value.clear();
+      }
+      ++i;
+    }
+  });
 }
 
 // Offsets/counts of a block series plus its data dataset.
@@ -62,24 +144,22 @@ std::vector<std::vector<double>> ReadRows(const Blocks& b, std::size_t t, int co
 }
 
 struct BodyIn {
-  h5::Dataset positions, node_count_ds, element_count_ds, element_alive, elements;
-  h5::Dataset removed_ds, cauterized_ds;  // absent in files written before the operations
+  FieldsIn fields;
+  h5::Dataset node_count_ds, element_count_ds, elements;
   std::vector<std::int64_t> node_count, element_count;
-  std::vector<double> removed;
   std::vector<mesh::Tet> tets;  // all rows of /elements
   Blocks alive_elements;
 };
 
 struct ThreadIn {
-  h5::Dataset positions, node_count_ds, node_alive;
+  FieldsIn fields;
+  h5::Dataset node_count_ds;
   std::vector<std::int64_t> node_count;
 };
 
 struct BoneIn {
+  FieldsIn fields;
   Blocks vertices, triangles;
-  h5::Dataset removed_ds, by_region_ds;
-  std::vector<double> removed, by_region;  ///< by_region: frames x columns, row-major
-  std::size_t by_region_columns = 0;
 };
 
 }  // namespace
@@ -90,16 +170,10 @@ struct RunReader::Impl {
   RunInfo info;
   std::int64_t frames = 0;
 
-  h5::Dataset time_ds, step_ds, rng_ds, next_id_ds, events, events_end_ds;
-  h5::Dataset slot_instrument_ds, slot_pose_ds, slot_jaw_ds, slot_buttons_ds, slot_force_ds;
-  h5::Dataset cam_pose_ds, cam_lens_ds, cam_head_ds;
+  FieldsIn root_fields, slots, camera;
+  h5::Dataset time_ds, step_ds, events, events_end_ds;
   std::vector<double> time;
-  std::vector<std::int64_t> step, next_id, events_end;
-  std::vector<std::uint64_t> rng;
-  std::vector<std::int32_t> slot_instrument;
-  std::vector<double> slot_pose, slot_jaw, slot_force;
-  std::vector<std::uint8_t> slot_buttons;
-  std::vector<double> cam_pose, cam_lens, cam_head;
+  std::vector<std::int64_t> step, events_end;
   std::vector<BodyIn> bodies;
   std::vector<ThreadIn> threads;
   std::vector<BoneIn> bones;
@@ -129,82 +203,75 @@ void RunReader::Impl::Open() {
   info.scenario_yaml = meta.OpenDataset("scenario_yaml").ReadString();
 
   auto frame = [&](h5::Dataset& d) { per_frame.push_back(&d); };
-  time_ds = root.OpenDataset("time");
-  step_ds = root.OpenDataset("step");
-  rng_ds = root.OpenDataset("rng_state");
-  next_id_ds = root.OpenDataset("next_constraint_id");
-  events = root.OpenDataset("events", kChunkCache);
-  events_end_ds = root.OpenDataset("events_end");
-  for (h5::Dataset* d : {&time_ds, &step_ds, &rng_ds, &next_id_ds, &events_end_ds}) frame(*d);
+  auto frames_of = [&](FieldsIn& f) {
+    for (h5::Dataset& d : f.ds) {
+      if (d.valid()) frame(d);
+    }
+  };
+  const State sample;
+  const SoftBodyState body;
+  const mesh::TriMesh surface;
+  OpenFields(root, sample, &root_fields);
+  frames_of(root_fields);
+  time_ds = root.OpenDataset(FieldOf(sample, sample.time_s).name);
+  step_ds = root.OpenDataset(FieldOf(sample, sample.step).name);
+  events = root.OpenDataset(layout::kEvents, kChunkCache);
+  events_end_ds = root.OpenDataset(layout::kEventsEnd);
+  frame(events_end_ds);
 
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kBodies)) {
     info.soft_bodies.push_back(layout::LeafName(g.path()));
     BodyIn& b = bodies.emplace_back();
-    b.positions = g.OpenDataset("positions", kChunkCache);
-    b.node_count_ds = g.OpenDataset("node_count");
-    b.element_count_ds = g.OpenDataset("element_count");
-    b.element_alive = g.OpenDataset("element_alive", kChunkCache);
-    b.elements = g.OpenDataset("elements", kChunkCache);
-    b.alive_elements.Open(g, "alive_elements");
-    if (g.Exists("removed_volume")) b.removed_ds = g.OpenDataset("removed_volume");
-    if (g.Exists("cauterized")) b.cauterized_ds = g.OpenDataset("cauterized", kChunkCache);
+    OpenFields(g, body, &b.fields);
+    b.node_count_ds = g.OpenDataset(layout::kNodeCount);
+    b.element_count_ds = g.OpenDataset(layout::kElementCount);
+    b.elements = g.OpenDataset(FieldOf(body, body.tets).name, kChunkCache);
+    b.alive_elements.Open(g, layout::kAliveElements);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kThreads)) {
     info.threads.push_back(layout::LeafName(g.path()));
     ThreadIn& t = threads.emplace_back();
-    t.positions = g.OpenDataset("positions", kChunkCache);
-    t.node_count_ds = g.OpenDataset("node_count");
-    t.node_alive = g.OpenDataset("node_alive", kChunkCache);
+    OpenFields(g, ThreadState{}, &t.fields);
+    t.node_count_ds = g.OpenDataset(layout::kNodeCount);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kBones)) {
     info.bones.push_back(layout::LeafName(g.path()));
     BoneIn& b = bones.emplace_back();
-    b.vertices.Open(g, "vertices");
-    b.triangles.Open(g, "triangles");
-    b.removed_ds = g.OpenDataset("removed_volume");
-    if (g.Exists("removed_volume_by_region")) {
-      b.by_region_ds = g.OpenDataset("removed_volume_by_region");
-    }
+    b.vertices.Open(g, FieldOf(surface, surface.nodes).name);
+    b.triangles.Open(g, FieldOf(surface, surface.tris).name);
+    OpenFields(g, BoneState{}, &b.fields);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kTools)) {
     info.instruments.push_back(layout::LeafName(g.path()));
   }
-  const h5::Group slots = root.OpenGroup(layout::kToolSlots);
-  slot_instrument_ds = slots.OpenDataset("instrument");
-  slot_pose_ds = slots.OpenDataset("pose");
-  slot_jaw_ds = slots.OpenDataset("jaw");
-  slot_buttons_ds = slots.OpenDataset("buttons");
-  slot_force_ds = slots.OpenDataset("force");
-  const h5::Group cam = root.OpenGroup(layout::kCamera);
-  cam_pose_ds = cam.OpenDataset("pose");
-  cam_lens_ds = cam.OpenDataset("lens_roll");
-  cam_head_ds = cam.OpenDataset("head_roll");
-  for (h5::Dataset* d : {&slot_instrument_ds, &slot_pose_ds, &slot_jaw_ds, &slot_buttons_ds,
-                         &slot_force_ds, &cam_pose_ds, &cam_lens_ds, &cam_head_ds}) {
-    frame(*d);
-  }
-  constraints.Open(root.OpenGroup(layout::kConstraints), "rows");
+  OpenFields(root.OpenGroup(layout::kToolSlots), ToolState{}, &slots);
+  OpenFields(root.OpenGroup(layout::kCamera), CameraState{}, &camera);
+  frames_of(slots);
+  frames_of(camera);
+  constraints.Open(root.OpenGroup(layout::kConstraints), layout::kRows);
   for (BodyIn& b : bodies) {
-    for (h5::Dataset* d : {&b.positions, &b.node_count_ds, &b.element_count_ds, &b.element_alive,
-                           &b.alive_elements.offset_ds, &b.alive_elements.count_ds}) {
+    frames_of(b.fields);
+    for (h5::Dataset* d : {&b.node_count_ds, &b.element_count_ds, &b.alive_elements.offset_ds,
+                           &b.alive_elements.count_ds}) {
       frame(*d);
-    }
-    for (h5::Dataset* d : {&b.removed_ds, &b.cauterized_ds}) {
-      if (d->valid()) frame(*d);
     }
   }
   for (ThreadIn& t : threads) {
-    for (h5::Dataset* d : {&t.positions, &t.node_count_ds, &t.node_alive}) frame(*d);
+    frames_of(t.fields);
+    frame(t.node_count_ds);
   }
   for (BoneIn& b : bones) {
+    frames_of(b.fields);
     for (h5::Dataset* d : {&b.vertices.offset_ds, &b.vertices.count_ds, &b.triangles.offset_ds,
-                           &b.triangles.count_ds, &b.removed_ds}) {
+                           &b.triangles.count_ds}) {
       frame(*d);
     }
   }
-  contacts.Open(root.OpenGroup(layout::kToolContacts), "rows");
-  if (root.Exists(layout::kHoles)) holes.Open(root.OpenGroup(layout::kHoles), "rows");
-  if (root.Exists(layout::kAnchors)) anchors.Open(root.OpenGroup(layout::kAnchors), "rows");
+  contacts.Open(root.OpenGroup(layout::kToolContacts), layout::kRows);
+  for (auto [list, blocks] : {std::pair{FieldOf(sample, sample.holes).name, &holes},
+                              std::pair{FieldOf(sample, sample.anchors).name, &anchors}}) {
+    if (root.Exists(list)) blocks->Open(root.OpenGroup(list), layout::kRows);
+  }
   for (Blocks* b : {&constraints, &contacts}) {
     frame(b->offset_ds);
     frame(b->count_ds);
@@ -220,17 +287,7 @@ void RunReader::Impl::Load() {
   frames = static_cast<std::int64_t>(n);
   time = time_ds.ReadAll<double>();
   step = step_ds.ReadAll<std::int64_t>();
-  rng = rng_ds.ReadAll<std::uint64_t>();
-  next_id = next_id_ds.ReadAll<std::int64_t>();
   events_end = events_end_ds.ReadAll<std::int64_t>();
-  slot_instrument = slot_instrument_ds.ReadAll<std::int32_t>();
-  slot_pose = slot_pose_ds.ReadAll<double>();
-  slot_jaw = slot_jaw_ds.ReadAll<double>();
-  slot_buttons = slot_buttons_ds.ReadAll<std::uint8_t>();
-  slot_force = slot_force_ds.ReadAll<double>();
-  cam_pose = cam_pose_ds.ReadAll<double>();
-  cam_lens = cam_lens_ds.ReadAll<double>();
-  cam_head = cam_head_ds.ReadAll<double>();
   for (BodyIn& b : bodies) {
     b.node_count = b.node_count_ds.ReadAll<std::int64_t>();
     b.element_count = b.element_count_ds.ReadAll<std::int64_t>();
@@ -239,18 +296,11 @@ void RunReader::Impl::Load() {
     std::copy(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(4 * b.tets.size()),
               b.tets.empty() ? nullptr : b.tets[0].data());
     b.alive_elements.Load();
-    if (b.removed_ds.valid()) b.removed = b.removed_ds.ReadAll<double>();
   }
   for (ThreadIn& t : threads) t.node_count = t.node_count_ds.ReadAll<std::int64_t>();
   for (BoneIn& b : bones) {
     b.vertices.Load();
     b.triangles.Load();
-    b.removed = b.removed_ds.ReadAll<double>();
-    if (b.by_region_ds.valid()) {
-      b.by_region = b.by_region_ds.ReadAll<double>();
-      const std::vector<hsize_t> d = b.by_region_ds.dims();
-      b.by_region_columns = d.size() == 2 ? static_cast<std::size_t>(d[1]) : 0;
-    }
   }
   constraints.Load();
   contacts.Load();
@@ -316,10 +366,7 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
   }
   const auto t = static_cast<std::size_t>(k);
   const auto th = static_cast<hsize_t>(k);
-  out.step = m.step[t];
-  out.time_s = m.time[t];
-  out.rng_state = m.rng[t];
-  out.next_constraint_id = m.next_id[t];
+  ReadFields(m.root_fields, th, -1, 0, 0, &out);
 
   out.soft_bodies.resize(m.bodies.size());
   for (std::size_t i = 0; i < m.bodies.size(); ++i) {
@@ -327,34 +374,15 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     SoftBodyState& s = out.soft_bodies[i];
     const auto n = static_cast<hsize_t>(b.node_count[t]);
     const auto e = static_cast<std::size_t>(b.element_count[t]);
-    s.x.resize(3, static_cast<Eigen::Index>(n));
-    b.positions.Read({th, 0, 0}, {1, n, 3}, H5T_NATIVE_DOUBLE, s.x.data());
+    ReadFields(b.fields, th, -1, n, e, &s);
     s.tets.assign(b.tets.begin(), b.tets.begin() + static_cast<std::ptrdiff_t>(e));
-    s.tet_alive.resize(e);
-    b.element_alive.Read({th, 0}, {1, e}, H5T_NATIVE_UINT8, s.tet_alive.data());
-    s.removed_volume_mm3 = b.removed.empty() ? 0.0 : b.removed[t];
-    s.cauterized.clear();
-    if (b.cauterized_ds.valid()) {
-      // Stored per node with zero padding; State keeps it empty while nothing is marked.
-      std::vector<std::uint8_t> marks(n);
-      b.cauterized_ds.Read({th, 0}, {1, n}, H5T_NATIVE_UINT8, marks.data());
-      if (std::find(marks.begin(), marks.end(), 1) != marks.end()) s.cauterized = std::move(marks);
-    }
-    s.v.resize(3, 0);
-    s.x_rest.resize(3, 0);
-    s.dv_warm.resize(3, 0);
   }
 
   out.threads.resize(m.threads.size());
   for (std::size_t i = 0; i < m.threads.size(); ++i) {
     const ThreadIn& d = m.threads[i];
-    ThreadState& s = out.threads[i];
     const auto n = static_cast<hsize_t>(d.node_count[t]);
-    s.x.resize(3, static_cast<Eigen::Index>(n));
-    d.positions.Read({th, 0, 0}, {1, n, 3}, H5T_NATIVE_DOUBLE, s.x.data());
-    s.node_alive.resize(n);
-    d.node_alive.Read({th, 0}, {1, n}, H5T_NATIVE_UINT8, s.node_alive.data());
-    s.v.resize(3, 0);
+    ReadFields(d.fields, th, -1, n, 0, &out.threads[i]);
   }
 
   out.bones.resize(m.bones.size());
@@ -370,29 +398,16 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     s.surface.tris.resize(tn);
     d.triangles.data.Read({toff, 0}, {tn, 3}, H5T_NATIVE_INT32,
                           s.surface.tris.empty() ? nullptr : s.surface.tris[0].data());
-    s.removed_volume_mm3 = d.removed[t];
-    const std::size_t w = d.by_region_columns;
-    if (w > 0 && (static_cast<std::size_t>(t) + 1) * w <= d.by_region.size()) {
-      const auto row =
-          d.by_region.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(t) * w);
-      s.removed_by_region_mm3.assign(row, row + static_cast<std::ptrdiff_t>(w));
-    }
-    // Surfaces are stored once per change: the block offsets identify this frame's surface.
+    ReadFields(d.fields, th, -1, 0, 0, &s);
+    // Derived (FieldStore::kDerived): surfaces are stored once per change, so the block offsets
+    // identify this frame's surface.
     s.revision = (static_cast<std::uint64_t>(voff) << 32) ^ static_cast<std::uint64_t>(toff);
   }
 
-  for (std::size_t k2 = 0; k2 < kToolSlots; ++k2) {
-    ToolState& s = out.tools[k2];
-    const std::size_t r = t * kToolSlots + k2;
-    s.instrument = m.slot_instrument[r];
-    s.pose = PoseFromRow(&m.slot_pose[7 * r]);
-    s.jaw = m.slot_jaw[r];
-    s.buttons = m.slot_buttons[r];
-    s.force_n = Vec3(m.slot_force[3 * r], m.slot_force[3 * r + 1], m.slot_force[3 * r + 2]);
+  for (std::size_t slot = 0; slot < kToolSlots; ++slot) {
+    ReadFields(m.slots, th, static_cast<int>(slot), 0, 0, &out.tools[slot]);
   }
-  out.camera.pose = PoseFromRow(&m.cam_pose[7 * t]);
-  out.camera.lens_roll_rad = m.cam_lens[t];
-  out.camera.head_roll_rad = m.cam_head[t];
+  ReadFields(m.camera, th, -1, 0, 0, &out.camera);
 
   {
     const auto off = static_cast<hsize_t>(m.constraints.offset[t]);

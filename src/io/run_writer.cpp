@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/io/hdf5.h"
@@ -15,6 +16,7 @@
 #include "arthrosim/version.h"
 #include "arthrosim_io_build_info.h"
 #include "run_series.h"
+#include "state_datasets.h"
 
 namespace arthrosim::io {
 namespace {
@@ -22,17 +24,10 @@ namespace {
 using detail::BlockSeries;
 using detail::FrameSeries;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kZero = 0.0;
-constexpr std::uint8_t kZeroU8 = 0;
-constexpr std::int32_t kNoInstrument = -1;
-constexpr std::int8_t kNoSlot = -1;
+using detail::PoseRow;
 
-/// x y z qw qx qy qz (Eigen stores x y z w).
-std::array<double, 7> PoseRow(const Pose& p) {
-  return {p.position_mm.x(), p.position_mm.y(), p.position_mm.z(), p.orientation.w(),
-          p.orientation.x(), p.orientation.y(), p.orientation.z()};
-}
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr std::int8_t kNoSlot = -1;
 
 std::string UtcNow() {
   // Wall clock: metadata only, never part of the state datasets.
@@ -63,26 +58,140 @@ void CheckNames(const Model& model, const std::string& field, const Items& items
   }
 }
 
+/// The per-frame datasets of an entity's fields stored per frame (FieldStore::kFrame), in the
+/// order the State field table visits them.
+struct FieldSet {
+  std::vector<FrameSeries> series;
+  std::vector<detail::ValueType> types;
+  std::vector<std::vector<unsigned char>> rows;  // per-slot values gathered for one frame
+  std::vector<std::size_t> row_bytes;            // bytes of one slot's value
+  std::vector<std::uint8_t> pad;                 // per-node marks padded to the node count
+};
+
+/// Creates a dataset in g for every per-frame field of `sample` (rows of `slots` values when
+/// slots > 0). `skip` (a member of sample, or nullptr) gets none.
+template <class S>
+void CreateFields(h5::Group& g, const S& sample, hsize_t slots, int z, int zf, FieldSet* out,
+                  const void* skip = nullptr, bool nan_poses = false, hsize_t nodes = 0) {
+  VisitFields(sample, [&](const auto& value, const FieldInfo& info) {
+    using T = std::decay_t<decltype(value)>;
+    if (info.store != FieldStore::kFrame || static_cast<const void*>(&value) == skip) return;
+    if constexpr (detail::kFrameValue<T>) {
+      const detail::ValueType t = detail::TypeOf<T>();
+      std::vector<hsize_t> row;
+      std::vector<int> grow;
+      if (slots > 0) row.push_back(slots);
+      if (t.per_node) {
+        row.push_back(info.dim == FieldDim::kNodes && nodes > 0 ? nodes : detail::RowsOf(value));
+        grow.push_back(static_cast<int>(row.size()));
+      }
+      if (t.row_vector) row.push_back(detail::RowsOf(value));
+      if (t.width > 0) row.push_back(t.width);
+      const FieldFill fill = nan_poses && std::is_same_v<T, Pose> ? FieldFill::kNaN : info.fill;
+      out->series.emplace_back().Create(g, info.name, t.file, t.mem, row, grow,
+                                        detail::FillOf<T>(fill), info.bulk_float ? zf : z);
+      out->types.push_back(t);
+      const std::size_t bytes = detail::BytesOf(value);
+      out->row_bytes.push_back(bytes);
+      out->rows.emplace_back(bytes * (slots > 0 ? slots : 1));
+    } else {
+      throw std::logic_error(std::string("RunWriter: field '") + info.name +
+                             "' has a type that cannot be stored per frame");
+    }
+  });
+}
+
+/// Buffers one frame of a dataset: `rows` rows (nodes, elements; 1 for fixed shapes).
+void WriteRow(FrameSeries& series, const detail::ValueType& t, hsize_t slots, hsize_t rows,
+              const void* data) {
+  const hsize_t w = t.width;
+  if (slots > 0) {
+    if (w > 0) return series.Write({slots, w}, data);
+    return series.Write({slots}, data);
+  }
+  if (t.per_node || t.row_vector) {
+    if (w > 0) return series.Write({rows, w}, data);
+    return series.Write({rows}, data);
+  }
+  if (w > 0) return series.Write({w}, data);
+  series.Write({}, data);
+}
+
+/// Buffers the per-frame fields of s (one entity with `nodes` nodes) as the next frame. Per-node
+/// marks shorter than the node count are padded with zeros. No heap allocation in steady state.
+template <class S>
+void WriteFields(const S& s, FieldSet* f, const void* skip = nullptr, hsize_t nodes = 0) {
+  std::size_t i = 0;
+  std::array<double, 7> pose;
+  VisitFields(s, [&](const auto& value, const FieldInfo& info) {
+    using T = std::decay_t<decltype(value)>;
+    if (info.store != FieldStore::kFrame || static_cast<const void*>(&value) == skip) return;
+    if constexpr (std::is_same_v<T, std::vector<std::uint8_t>>) {
+      if (info.dim == FieldDim::kNodes && value.size() != nodes) {
+        f->pad.assign(nodes, 0);
+        std::copy_n(value.begin(), std::min<std::size_t>(value.size(), nodes), f->pad.begin());
+        WriteRow(f->series[i], f->types[i], 0, nodes, f->pad.data());
+        ++i;
+        return;
+      }
+    }
+    if constexpr (detail::kFrameValue<T>) {
+      WriteRow(f->series[i], f->types[i], 0, detail::RowsOf(value), detail::DataOf(value, &pose));
+      ++i;
+    }
+  });
+}
+
+/// Buffers one frame of per-slot fields: field j of every slot as one [slots, ...] row.
+template <class S, std::size_t N>
+void WriteSlotFields(const std::array<S, N>& slots, FieldSet* f) {
+  std::array<double, 7> pose;
+  for (std::size_t k = 0; k < N; ++k) {
+    std::size_t j = 0;
+    VisitFields(slots[k], [&](const auto& value, const FieldInfo& info) {
+      using T = std::decay_t<decltype(value)>;
+      if (info.store != FieldStore::kFrame) return;
+      if constexpr (detail::kFrameValue<T>) {
+        const auto* p = static_cast<const unsigned char*>(detail::DataOf(value, &pose));
+        std::copy(p, p + f->row_bytes[j], f->rows[j].data() + k * f->row_bytes[j]);
+        ++j;
+      }
+    });
+  }
+  for (std::size_t j = 0; j < f->series.size(); ++j) {
+    WriteRow(f->series[j], f->types[j], N, 1, f->rows[j].data());
+  }
+}
+
+/// Calls f on every series of a field set.
+template <class F>
+void ForEach(FieldSet& set, F& f) {
+  for (FrameSeries& s : set.series) f(s);
+}
+
 struct BodyOut {
-  FrameSeries positions, node_count, element_count, element_alive;
-  FrameSeries removed_volume, cauterized;  // operations: cut/shaved volume, cautery marks
+  FieldSet fields;
+  FrameSeries node_count, element_count;
   h5::Dataset elements;
   std::vector<mesh::Tet> written;  // rows of /elements so far (append-only check)
   BlockSeries alive_elements, xdmf_points;
 };
 
 struct ThreadOut {
-  FrameSeries positions, node_count, node_alive;
+  FieldSet fields;
+  FrameSeries node_count;
   BlockSeries alive_segments, xdmf_points;
 };
 
 struct BoneOut {
+  FieldSet fields;
   BlockSeries vertices, triangles;
-  FrameSeries removed_volume, removed_by_region;
 };
 
+/// The per-instrument view of the tool slots (/tools/<instrument>).
 struct ToolOut {
-  FrameSeries pose, jaw, buttons, force, active, slot;
+  FieldSet fields;  // the slot's fields but `instrument`; NaN pose while not inserted
+  FrameSeries active, slot;
 };
 
 }  // namespace
@@ -97,17 +206,19 @@ struct RunWriter::Impl {
   h5::File file;
   bool closed = false;
 
-  FrameSeries time, step, rng_state, next_constraint_id, events_end;
+  FieldSet root_fields;         // step, time, next_constraint_id, rng_state
+  std::size_t time_series = 0;  // index of /time in root_fields: written last
+  FrameSeries events_end;
   h5::Dataset events;
   h5::Handle event_mem, event_file, constraint_mem, constraint_file, contact_mem, contact_file;
   std::vector<BodyOut> bodies;
   std::vector<ThreadOut> threads;
   std::vector<BoneOut> bones;
   std::vector<ToolOut> tools;
-  FrameSeries slot_instrument, slot_pose, slot_jaw, slot_buttons, slot_force;
-  FrameSeries camera_pose, camera_lens_roll, camera_head_roll;
+  ToolState absent;  // what /tools/<instrument> holds while it is not inserted
+  FieldSet slots, camera;
   BlockSeries constraints, contacts;
-  BlockSeries holes, anchors;  // float64 rows: HoleRow / AnchorRow of hdf5_layout.h
+  BlockSeries holes, anchors;  // float64 rows: AppendHoleRow / AppendAnchorRow of hdf5_layout.h
 
   std::int64_t frames = 0, flushed = 0;
   std::int64_t xdmf_frames = 0;     // frames in the sidecar as last written
@@ -122,16 +233,28 @@ struct RunWriter::Impl {
 
   // Scratch buffers reused every frame.
   std::vector<std::int32_t> ints;
-  std::vector<std::uint8_t> marks;
   std::vector<float> floats;
   std::vector<layout::ConstraintRecord> records;
   std::vector<layout::ToolContactRecord> contact_records;
+  std::vector<double> record_rows;
   mutable std::vector<int> seen;  // Validate: slots holding each instrument
 
   void CreateLayout(const Model& model, const State& initial);
+  void CreateRoot(const Model& model, const State& initial);
+  void CreateBodies(const Model& model, const State& initial);
+  void CreateThreads(const Model& model, const State& initial);
+  void CreateBones(const Model& model, const State& initial);
+  void CreateTools(const Model& model, const State& initial);
+  void CreateRecords();
   void Validate(const State& s) const;
   /// Buffers `s` as the next frame; writes the buffered block when it is full.
   void WriteFrame(const State& s);
+  void WriteBodies(const State& s);
+  void WriteThreads(const State& s);
+  void WriteBones(const State& s);
+  void WriteInstruments(const State& s);
+  void WriteRecords(const State& s);
+  void WriteEvents(const State& s);
   /// Writes every buffered frame to the file: all datasets, then /time (a frame counts once
   /// /time has it, so a reader never sees part of a frame).
   void WriteBlock();
@@ -142,176 +265,194 @@ struct RunWriter::Impl {
   void WriteXdmf();
 };
 
-void RunWriter::Impl::CreateLayout(const Model& model_ref, const State& initial) {
-  const Model* model = &model_ref;
+void RunWriter::Impl::CreateLayout(const Model& model, const State& initial) {
+  CreateRoot(model, initial);
+  CreateBodies(model, initial);
+  CreateThreads(model, initial);
+  CreateBones(model, initial);
+  CreateTools(model, initial);
+  CreateRecords();
+}
+
+void RunWriter::Impl::CreateRoot(const Model& model, const State& initial) {
   const int z = options.deflate_level;
-  const int zf = options.float_deflate_level;
   h5::Group& root = file.root();
   root.SetAttr("format", layout::kFormatName);
   root.SetAttr("format_version", layout::kFormatVersion);
   root.SetAttr("arthrosim_version", kVersion);
-  root.SetAttr("scenario_name", model->name);
-  root.SetAttr("scenario_sha256", model->scenario_sha256);
-  root.SetAttr("dt", model->options.dt_s);
-  root.SetAttr("output_every_steps", std::int64_t{model->options.output_every_steps});
-  root.SetAttr("flush_interval", model->options.flush_interval_s);
-  root.SetAttr("seed", static_cast<std::int64_t>(model->options.seed));
+  root.SetAttr("scenario_name", model.name);
+  root.SetAttr("scenario_sha256", model.scenario_sha256);
+  root.SetAttr("dt", model.options.dt_s);
+  root.SetAttr("output_every_steps", std::int64_t{model.options.output_every_steps});
+  root.SetAttr("flush_interval", model.options.flush_interval_s);
+  root.SetAttr("seed", static_cast<std::int64_t>(model.options.seed));
 
   h5::Group meta = root.CreateGroup(layout::kMeta);
-  meta.CreateStringDataset("scenario_yaml", model->scenario_text);
-  meta.SetAttr("scenario_path", model->scenario_path);
+  meta.CreateStringDataset("scenario_yaml", model.scenario_text);
+  meta.SetAttr("scenario_path", model.scenario_path);
   meta.SetAttr("compiler", ARTHROSIM_IO_COMPILER);
   meta.SetAttr("cxx_flags", ARTHROSIM_IO_CXX_FLAGS);
   meta.SetAttr("build_type", ARTHROSIM_IO_BUILD_TYPE);
   meta.SetAttr("hdf5_version", h5::LibraryVersion());
   meta.SetAttr("created_utc", UtcNow());
 
-  time.Create(root, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
-  step.Create(root, "step", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
-  rng_state.Create(root, "rng_state", H5T_STD_U64LE, H5T_NATIVE_UINT64, {}, {}, nullptr, z);
-  next_constraint_id.Create(root, "next_constraint_id", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {},
-                            nullptr, z);
+  CreateFields(root, initial, 0, z, options.float_deflate_level, &root_fields);
+  std::size_t i = 0;
+  VisitFields(initial, [&](const auto& value, const FieldInfo& info) {
+    if (info.store != FieldStore::kFrame) return;
+    if (static_cast<const void*>(&value) == &initial.time_s) time_series = i;
+    ++i;
+  });
 
   event_mem = layout::EventType(false);
   event_file = layout::EventType(true);
-  {
-    h5::DatasetSpec spec = h5::GrowingSpec({0}, sizeof(layout::EventRecord));
-    spec.deflate = z;
-    events = root.CreateDataset("events", event_file.get(), spec);
-  }
-  events_end.Create(root, "events_end", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+  h5::DatasetSpec spec = h5::GrowingSpec({0}, sizeof(layout::EventRecord));
+  spec.deflate = z;
+  events = root.CreateDataset(layout::kEvents, event_file.get(), spec);
+  events_end.Create(root, layout::kEventsEnd, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+}
 
-  h5::Group gb = root.CreateGroup(layout::kBodies);
-  bodies.resize(model->soft_bodies.size());
+void RunWriter::Impl::CreateBodies(const Model& model, const State& initial) {
+  const int z = options.deflate_level;
+  const int zf = options.float_deflate_level;
+  h5::Group gb = file.root().CreateGroup(layout::kBodies);
+  bodies.resize(model.soft_bodies.size());
   for (std::size_t i = 0; i < bodies.size(); ++i) {
-    const hsize_t n = static_cast<hsize_t>(initial.soft_bodies[i].x.cols());
-    const hsize_t e = initial.soft_bodies[i].tets.size();
-    h5::Group g = gb.CreateGroup(model->soft_bodies[i].name);
+    const SoftBodyState& sb = initial.soft_bodies[i];
+    h5::Group g = gb.CreateGroup(model.soft_bodies[i].name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
-    g.SetAttr("initial_nodes", static_cast<std::int64_t>(n));
-    g.SetAttr("initial_elements", static_cast<std::int64_t>(e));
+    g.SetAttr("initial_nodes", static_cast<std::int64_t>(sb.x.cols()));
+    g.SetAttr("initial_elements", static_cast<std::int64_t>(sb.tets.size()));
     BodyOut& b = bodies[i];
-    b.positions.Create(g, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {n, 3}, {1}, &kNaN, zf);
-    b.node_count.Create(g, "node_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
-    b.element_count.Create(g, "element_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
-    b.element_alive.Create(g, "element_alive", H5T_STD_U8LE, H5T_NATIVE_UINT8, {e}, {1}, &kZeroU8,
-                           z);
-    h5::DatasetSpec spec = h5::GrowingSpec({0, 4}, 4);
-    spec.deflate = z;
-    b.elements = g.CreateDataset("elements", H5T_STD_I32LE, spec);
-    b.alive_elements.Create(g, "alive_elements", H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z);
-    b.removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr,
-                            z);
-    b.cauterized.Create(g, "cauterized", H5T_STD_U8LE, H5T_NATIVE_UINT8, {n}, {1}, &kZeroU8, z);
-    b.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
+    CreateFields(g, sb, 0, z, zf, &b.fields, nullptr, false, static_cast<hsize_t>(sb.x.cols()));
+    b.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    b.element_count.Create(g, layout::kElementCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {},
+                           nullptr, z);
+    VisitFields(sb, [&](const auto& value, const FieldInfo& info) {
+      if (static_cast<const void*>(&value) != &sb.tets) return;
+      h5::DatasetSpec spec = h5::GrowingSpec({0, 4}, 4);
+      spec.deflate = z;
+      b.elements = g.CreateDataset(info.name, H5T_STD_I32LE, spec);
+    });
+    b.alive_elements.Create(g, layout::kAliveElements, H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z);
+    b.xdmf_points.Create(g, layout::kXdmfPoints, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
   }
+}
 
-  h5::Group gt = root.CreateGroup(layout::kThreads);
-  threads.resize(model->threads.size());
+void RunWriter::Impl::CreateThreads(const Model& model, const State& initial) {
+  const int z = options.deflate_level;
+  const int zf = options.float_deflate_level;
+  h5::Group gt = file.root().CreateGroup(layout::kThreads);
+  threads.resize(model.threads.size());
   for (std::size_t i = 0; i < threads.size(); ++i) {
-    const hsize_t n = static_cast<hsize_t>(initial.threads[i].x.cols());
-    h5::Group g = gt.CreateGroup(model->threads[i].name);
+    h5::Group g = gt.CreateGroup(model.threads[i].name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
-    g.SetAttr("diameter_mm", model->threads[i].diameter_mm);
+    g.SetAttr("diameter_mm", model.threads[i].diameter_mm);
     ThreadOut& t = threads[i];
-    t.positions.Create(g, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {n, 3}, {1}, &kNaN, zf);
-    t.node_count.Create(g, "node_count", H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
-    t.node_alive.Create(g, "node_alive", H5T_STD_U8LE, H5T_NATIVE_UINT8, {n}, {1}, &kZeroU8, z);
-    t.alive_segments.Create(g, "alive_segments", H5T_STD_I32LE, H5T_NATIVE_INT32, 2, 8, z);
-    t.xdmf_points.Create(g, "xdmf_points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
+    CreateFields(g, initial.threads[i], 0, z, zf, &t.fields, nullptr, false,
+                 static_cast<hsize_t>(initial.threads[i].x.cols()));
+    t.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    t.alive_segments.Create(g, layout::kAliveSegments, H5T_STD_I32LE, H5T_NATIVE_INT32, 2, 8, z);
+    t.xdmf_points.Create(g, layout::kXdmfPoints, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 3, 12, zf);
   }
+}
 
-  h5::Group gbo = root.CreateGroup(layout::kBones);
-  bones.resize(model->bones.size());
+void RunWriter::Impl::CreateBones(const Model& model, const State& initial) {
+  const int z = options.deflate_level;
+  const int zf = options.float_deflate_level;
+  h5::Group gbo = file.root().CreateGroup(layout::kBones);
+  bones.resize(model.bones.size());
   for (std::size_t i = 0; i < bones.size(); ++i) {
-    h5::Group g = gbo.CreateGroup(model->bones[i].name);
+    h5::Group g = gbo.CreateGroup(model.bones[i].name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
-    g.SetAttr("hardness", model->bones[i].hardness);
-    bones[i].vertices.Create(g, "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf);
-    bones[i].triangles.Create(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z);
-    bones[i].removed_volume.Create(g, "removed_volume", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {},
-                                   nullptr, z);
-    // One column per Model region (in scenario order) plus "elsewhere".
+    g.SetAttr("hardness", model.bones[i].hardness);
+    // Columns of removed_volume_by_region: one per Model region (in scenario order), "elsewhere".
     std::string columns;
-    for (const Region& r : model->regions) columns += r.name + ",";
+    for (const Region& r : model.regions) columns += r.name + ",";
     g.SetAttr("removed_by_region_columns", columns + "elsewhere");
-    bones[i].removed_by_region.Create(g, "removed_volume_by_region", H5T_IEEE_F64LE,
-                                      H5T_NATIVE_DOUBLE, {model->regions.size() + 1}, {}, nullptr,
-                                      z);
+    const mesh::TriMesh& surface = initial.bones[i].surface;
+    VisitFields(surface, [&](const auto& value, const FieldInfo& info) {
+      if (static_cast<const void*>(&value) == &surface.nodes) {
+        bones[i].vertices.Create(g, info.name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf);
+      } else {
+        bones[i].triangles.Create(g, info.name, H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z);
+      }
+    });
+    CreateFields(g, initial.bones[i], 0, z, zf, &bones[i].fields);
   }
+}
 
-  h5::Group gto = root.CreateGroup(layout::kTools);
-  tools.resize(model->instruments.size());
+void RunWriter::Impl::CreateTools(const Model& model, const State& initial) {
+  const int z = options.deflate_level;
+  const int zf = options.float_deflate_level;
+  const ToolState& sample = initial.tools[0];
+  absent.pose.position_mm.setConstant(kNaN);
+  absent.pose.orientation.coeffs().setConstant(kNaN);
+  h5::Group gto = file.root().CreateGroup(layout::kTools);
+  tools.resize(model.instruments.size());
   for (std::size_t i = 0; i < tools.size(); ++i) {
-    const InstrumentModel& im = model->instruments[i];
+    const InstrumentModel& im = model.instruments[i];
     h5::Group g = gto.CreateGroup(im.name);
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("kind", InstrumentKindName(im.kind));
     g.SetAttr("portal", im.portal);
     ToolOut& t = tools[i];
-    t.pose.Create(g, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {7}, {}, &kNaN, z);
-    t.jaw.Create(g, "jaw", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
-    t.buttons.Create(g, "buttons", H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
-    t.force.Create(g, "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {3}, {}, nullptr, z);
-    t.active.Create(g, "active", H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
-    t.slot.Create(g, "slot", H5T_STD_I8LE, H5T_NATIVE_INT8, {}, {}, &kNoSlot, z);
+    CreateFields(g, sample, 0, z, zf, &t.fields, &sample.instrument, true);
+    t.active.Create(g, layout::kActive, H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
+    t.slot.Create(g, layout::kSlot, H5T_STD_I8LE, H5T_NATIVE_INT8, {}, {}, &kNoSlot, z);
   }
+  h5::Group gs = file.root().CreateGroup(layout::kToolSlots);
+  CreateFields(gs, sample, kToolSlots, z, zf, &slots);
+  h5::Group gc = file.root().CreateGroup(layout::kCamera);
+  CreateFields(gc, initial.camera, 0, z, zf, &camera);
+}
 
-  h5::Group gs = root.CreateGroup(layout::kToolSlots);
-  constexpr hsize_t kS = kToolSlots;
-  slot_instrument.Create(gs, "instrument", H5T_STD_I32LE, H5T_NATIVE_INT32, {kS}, {},
-                         &kNoInstrument, z);
-  slot_pose.Create(gs, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS, 7}, {}, nullptr, z);
-  slot_jaw.Create(gs, "jaw", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS}, {}, nullptr, z);
-  slot_buttons.Create(gs, "buttons", H5T_STD_U8LE, H5T_NATIVE_UINT8, {kS}, {}, nullptr, z);
-  slot_force.Create(gs, "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {kS, 3}, {}, nullptr, z);
-
-  h5::Group gc = root.CreateGroup(layout::kCamera);
-  camera_pose.Create(gc, "pose", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {7}, {}, nullptr, z);
-  camera_lens_roll.Create(gc, "lens_roll", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
-  camera_head_roll.Create(gc, "head_roll", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {}, {}, nullptr, z);
-
-  h5::Group gk = root.CreateGroup(layout::kConstraints);
+void RunWriter::Impl::CreateRecords() {
+  const int z = options.deflate_level;
+  h5::Group gk = file.root().CreateGroup(layout::kConstraints);
   constraint_mem = layout::ConstraintType(false);
   constraint_file = layout::ConstraintType(true);
-  constraints.Create(gk, "rows", constraint_file.get(), constraint_mem.get(), 0,
+  constraints.Create(gk, layout::kRows, constraint_file.get(), constraint_mem.get(), 0,
                      sizeof(layout::ConstraintRecord), z);
 
-  h5::Group gtc = root.CreateGroup(layout::kToolContacts);
+  h5::Group gtc = file.root().CreateGroup(layout::kToolContacts);
   contact_mem = layout::ToolContactType(false);
   contact_file = layout::ToolContactType(true);
-  contacts.Create(gtc, "rows", contact_file.get(), contact_mem.get(), 0,
+  contacts.Create(gtc, layout::kRows, contact_file.get(), contact_mem.get(), 0,
                   sizeof(layout::ToolContactRecord), z);
 
-  h5::Group gho = root.CreateGroup(layout::kHoles);
-  holes.Create(gho, "rows", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kHoleColumns,
+  const State sample;
+  h5::Group gho = file.root().CreateGroup(FieldOf(sample, sample.holes).name);
+  holes.Create(gho, layout::kRows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kHoleColumns,
                sizeof(double) * layout::kHoleColumns, z);
-  h5::Group gan = root.CreateGroup(layout::kAnchors);
-  anchors.Create(gan, "rows", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kAnchorColumns,
+  h5::Group gan = file.root().CreateGroup(FieldOf(sample, sample.anchors).name);
+  anchors.Create(gan, layout::kRows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kAnchorColumns,
                  sizeof(double) * layout::kAnchorColumns, z);
 }
 
 template <class F>
 void RunWriter::Impl::ForEachSeries(F f) {
   for (BodyOut& b : bodies) {
-    f(b.positions), f(b.node_count), f(b.element_count), f(b.element_alive);
-    f(b.removed_volume), f(b.cauterized);
-    f(b.alive_elements), f(b.xdmf_points);
+    ForEach(b.fields, f);
+    f(b.node_count), f(b.element_count), f(b.alive_elements), f(b.xdmf_points);
   }
   for (ThreadOut& t : threads) {
-    f(t.positions), f(t.node_count), f(t.node_alive), f(t.alive_segments), f(t.xdmf_points);
+    ForEach(t.fields, f);
+    f(t.node_count), f(t.alive_segments), f(t.xdmf_points);
   }
-  for (BoneOut& b : bones)
-    f(b.vertices), f(b.triangles), f(b.removed_volume), f(b.removed_by_region);
-  for (ToolOut& o : tools) f(o.pose), f(o.jaw), f(o.buttons), f(o.force), f(o.active), f(o.slot);
-  f(slot_instrument), f(slot_pose), f(slot_jaw), f(slot_buttons), f(slot_force);
-  f(camera_pose), f(camera_lens_roll), f(camera_head_roll);
-  f(constraints), f(contacts), f(holes), f(anchors);
-  f(events_end), f(rng_state), f(next_constraint_id), f(step);
+  for (BoneOut& b : bones) f(b.vertices), f(b.triangles), ForEach(b.fields, f);
+  for (ToolOut& o : tools) ForEach(o.fields, f), f(o.active), f(o.slot);
+  ForEach(slots, f);
+  ForEach(camera, f);
+  f(constraints), f(contacts), f(holes), f(anchors), f(events_end);
+  for (std::size_t i = 0; i < root_fields.series.size(); ++i) {
+    if (i != time_series) f(root_fields.series[i]);
+  }
 }
 
 std::size_t RunWriter::Impl::BufferedBytes() {
-  std::size_t bytes = time.buffered_bytes() + frame_events.size() * sizeof(layout::EventRecord);
+  std::size_t bytes = root_fields.series[time_series].buffered_bytes() +
+                      frame_events.size() * sizeof(layout::EventRecord);
   ForEachSeries([&](const auto& series) { bytes += series.buffered_bytes(); });
   return bytes;
 }
@@ -327,7 +468,7 @@ void RunWriter::Impl::WriteBlock() {
     frame_events.clear();
   }
   ForEachSeries([](auto& series) { series.WriteOut(); });
-  time.WriteOut();
+  root_fields.series[time_series].WriteOut();  // last: a frame counts once /time has it
   written_frames = frames;
 }
 
@@ -385,12 +526,30 @@ void RunWriter::Impl::Validate(const State& s) const {
 }
 
 void RunWriter::Impl::WriteFrame(const State& s) {
+  WriteBodies(s);
+  WriteThreads(s);
+  WriteBones(s);
+  WriteInstruments(s);
+  WriteSlotFields(s.tools, &slots);
+  WriteFields(s.camera, &camera);
+  WriteRecords(s);
+  WriteEvents(s);
+  WriteFields(s, &root_fields);  // /time among them: written out last by WriteBlock
+  times.push_back(s.time_s);
+  last_step = s.step;
+  ++frames;
+  if (frames - written_frames >= options.block_frames || BufferedBytes() >= options.block_bytes) {
+    WriteBlock();
+  }
+}
+
+void RunWriter::Impl::WriteBodies(const State& s) {
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     const SoftBodyState& sb = s.soft_bodies[i];
     BodyOut& b = bodies[i];
     const auto n = static_cast<hsize_t>(sb.x.cols());
     const hsize_t e = sb.tets.size();
-    b.positions.Write({n, 3}, sb.x.data());
+    WriteFields(sb, &b.fields, nullptr, n);
     b.node_count.Push(static_cast<std::int64_t>(n));
     if (e > b.written.size()) {  // tets appended by splitting
       const std::size_t first = b.written.size();
@@ -399,12 +558,6 @@ void RunWriter::Impl::WriteFrame(const State& s) {
                        sb.tets.end());
     }
     b.element_count.Push(static_cast<std::int64_t>(e));
-    b.element_alive.Write({e}, sb.tet_alive.data());
-    b.removed_volume.Push(sb.removed_volume_mm3);
-    marks.assign(n, 0);  // per node; nodes past the State's vector are unmarked
-    std::copy_n(sb.cauterized.begin(), std::min<std::size_t>(sb.cauterized.size(), n),
-                marks.begin());
-    b.cauterized.Write({n}, marks.data());
     ints.clear();
     for (std::size_t k = 0; k < e; ++k) {
       if (sb.tet_alive[k] != 0) ints.insert(ints.end(), sb.tets[k].begin(), sb.tets[k].end());
@@ -413,14 +566,15 @@ void RunWriter::Impl::WriteFrame(const State& s) {
     floats.assign(sb.x.data(), sb.x.data() + sb.x.size());
     b.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
   }
+}
 
+void RunWriter::Impl::WriteThreads(const State& s) {
   for (std::size_t i = 0; i < threads.size(); ++i) {
     const ThreadState& st = s.threads[i];
     ThreadOut& th = threads[i];
     const auto n = static_cast<hsize_t>(st.x.cols());
-    th.positions.Write({n, 3}, st.x.data());
+    WriteFields(st, &th.fields, nullptr, n);
     th.node_count.Push(static_cast<std::int64_t>(n));
-    th.node_alive.Write({n}, st.node_alive.data());
     ints.clear();
     for (hsize_t k = 0; k + 1 < n; ++k) {  // threads are chains 0-1-...-(n-1)
       if (st.node_alive[k] != 0 && st.node_alive[k + 1] != 0) {
@@ -432,21 +586,23 @@ void RunWriter::Impl::WriteFrame(const State& s) {
     floats.assign(st.x.data(), st.x.data() + st.x.size());
     th.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
   }
+}
 
+void RunWriter::Impl::WriteBones(const State& s) {
   for (std::size_t i = 0; i < bones.size(); ++i) {
     const BoneState& sb = s.bones[i];
     bones[i].vertices.Write(sb.surface.nodes.data(),
                             static_cast<std::int64_t>(sb.surface.nodes.cols()));
     bones[i].triangles.Write(sb.surface.tris.empty() ? nullptr : sb.surface.tris[0].data(),
                              static_cast<std::int64_t>(sb.surface.tris.size()));
-    bones[i].removed_volume.Push(sb.removed_volume_mm3);
-    bones[i].removed_by_region.Write({sb.removed_by_region_mm3.size()},
-                                     sb.removed_by_region_mm3.data());
+    WriteFields(sb, &bones[i].fields);
   }
+}
 
-  // Per instrument of the Model: which slot holds it, if any.
+// Per instrument of the Model: which slot holds it, if any, and that slot's values.
+void RunWriter::Impl::WriteInstruments(const State& s) {
   for (std::size_t i = 0; i < tools.size(); ++i) {
-    const ToolState* held = nullptr;
+    const ToolState* held = &absent;
     std::int8_t slot = -1;
     for (int k = 0; k < kToolSlots; ++k) {
       if (s.tools[static_cast<std::size_t>(k)].instrument == static_cast<std::int32_t>(i)) {
@@ -455,67 +611,28 @@ void RunWriter::Impl::WriteFrame(const State& s) {
       }
     }
     ToolOut& o = tools[i];
-    std::array<double, 7> pose;
-    pose.fill(kNaN);
-    std::array<double, 3> force{0, 0, 0};
-    double jaw = 0;
-    std::uint8_t buttons = 0;
-    if (held != nullptr) {
-      pose = PoseRow(held->pose);
-      force = {held->force_n.x(), held->force_n.y(), held->force_n.z()};
-      jaw = held->jaw;
-      buttons = held->buttons;
-    }
-    o.pose.Write({7}, pose.data());
-    o.jaw.Push(jaw);
-    o.buttons.Push(buttons);
-    o.force.Write({3}, force.data());
-    o.active.Push(static_cast<std::uint8_t>(held != nullptr ? 1 : 0));
+    WriteFields(*held, &o.fields, &held->instrument);
+    o.active.Push(static_cast<std::uint8_t>(slot >= 0 ? 1 : 0));
     o.slot.Push(slot);
   }
+}
 
-  {
-    std::array<std::int32_t, kToolSlots> inst{};
-    std::array<double, kToolSlots * 7> pose{};
-    std::array<double, kToolSlots> jaw{};
-    std::array<std::uint8_t, kToolSlots> buttons{};
-    std::array<double, kToolSlots * 3> force{};
-    for (std::size_t k = 0; k < kToolSlots; ++k) {
-      const ToolState& ts = s.tools[k];
-      inst[k] = ts.instrument;
-      const std::array<double, 7> p = PoseRow(ts.pose);
-      std::copy(p.begin(), p.end(), pose.begin() + static_cast<std::ptrdiff_t>(7 * k));
-      jaw[k] = ts.jaw;
-      buttons[k] = ts.buttons;
-      for (int c = 0; c < 3; ++c) force[3 * k + static_cast<std::size_t>(c)] = ts.force_n[c];
-    }
-    constexpr hsize_t kS = kToolSlots;
-    slot_instrument.Write({kS}, inst.data());
-    slot_pose.Write({kS, 7}, pose.data());
-    slot_jaw.Write({kS}, jaw.data());
-    slot_buttons.Write({kS}, buttons.data());
-    slot_force.Write({kS, 3}, force.data());
-  }
-
-  const std::array<double, 7> cam = PoseRow(s.camera.pose);
-  camera_pose.Write({7}, cam.data());
-  camera_lens_roll.Push(s.camera.lens_roll_rad);
-  camera_head_roll.Push(s.camera.head_roll_rad);
-
+void RunWriter::Impl::WriteRecords(const State& s) {
   records.clear();
   for (const SpringConstraint& c : s.constraints) records.push_back(layout::ToRecord(c));
   constraints.Write(records.data(), static_cast<std::int64_t>(records.size()));
-
   contact_records.clear();
   for (const ToolContact& c : s.tool_contacts) contact_records.push_back(layout::ToRecord(c));
   contacts.Write(contact_records.data(), static_cast<std::int64_t>(contact_records.size()));
-  std::vector<double> rows;
-  for (const BoneHole& h : s.holes) layout::AppendHoleRow(h, &rows);
-  holes.Write(rows.data(), static_cast<std::int64_t>(s.holes.size()));
-  rows.clear();
-  for (const AnchorState& a : s.anchors) layout::AppendAnchorRow(a, &rows);
-  anchors.Write(rows.data(), static_cast<std::int64_t>(s.anchors.size()));
+  record_rows.clear();
+  for (const BoneHole& h : s.holes) layout::AppendHoleRow(h, &record_rows);
+  holes.Write(record_rows.data(), static_cast<std::int64_t>(s.holes.size()));
+  record_rows.clear();
+  for (const AnchorState& a : s.anchors) layout::AppendAnchorRow(a, &record_rows);
+  anchors.Write(record_rows.data(), static_cast<std::int64_t>(s.anchors.size()));
+}
 
+void RunWriter::Impl::WriteEvents(const State& s) {
   if (last_events_step != s.step) {
     for (const Event& e : s.events) pending_events.push_back(layout::ToRecord(e));
     last_events_step = s.step;
@@ -524,17 +641,6 @@ void RunWriter::Impl::WriteFrame(const State& s) {
   events_total += static_cast<std::int64_t>(pending_events.size());
   pending_events.clear();
   events_end.Push(events_total);
-
-  rng_state.Push(s.rng_state);
-  next_constraint_id.Push(s.next_constraint_id);
-  step.Push(s.step);
-  time.Push(s.time_s);  // last: a frame counts once /time has it
-  times.push_back(s.time_s);
-  last_step = s.step;
-  ++frames;
-  if (frames - written_frames >= options.block_frames || BufferedBytes() >= options.block_bytes) {
-    WriteBlock();
-  }
 }
 
 void RunWriter::Impl::WriteXdmf() {

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "arthrosim/core/state_fields.h"
 #include "arthrosim/io/hdf5.h"
 #include "arthrosim/io/hdf5_layout.h"
 
@@ -153,29 +154,31 @@ XdmfRun XdmfRunFromFile(const std::string& h5_path) {
   h5::File f = h5::File::OpenReadOnly(h5_path, true);
   XdmfRun run;
   run.h5_name = BaseName(h5_path);
-  run.times = f.root().OpenDataset("time").ReadAll<double>();
+  const State state;
+  const mesh::TriMesh surface;
+  run.times = f.root().OpenDataset(FieldOf(state, state.time_s).name).ReadAll<double>();
   for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kBodies)) {
     XdmfMesh m;
     m.name = "body:" + layout::LeafName(g.path());
     m.cell = XdmfCell::kTetrahedron;
-    m.cells = ReadSeries(g, "alive_elements", 4, false, 4);
-    m.points = ReadSeries(g, "xdmf_points", 3, true, 4);
+    m.cells = ReadSeries(g, layout::kAliveElements, 4, false, 4);
+    m.points = ReadSeries(g, layout::kXdmfPoints, 3, true, 4);
     run.meshes.push_back(std::move(m));
   }
   for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kBones)) {
     XdmfMesh m;
     m.name = "bone:" + layout::LeafName(g.path());
     m.cell = XdmfCell::kTriangle;
-    m.cells = ReadSeries(g, "triangles", 3, false, 4);
-    m.points = ReadSeries(g, "vertices", 3, true, 8);
+    m.cells = ReadSeries(g, FieldOf(surface, surface.tris).name, 3, false, 4);
+    m.points = ReadSeries(g, FieldOf(surface, surface.nodes).name, 3, true, 8);
     run.meshes.push_back(std::move(m));
   }
   for (const h5::Group& g : layout::OrderedGroups(f.root(), layout::kThreads)) {
     XdmfMesh m;
     m.name = "thread:" + layout::LeafName(g.path());
     m.cell = XdmfCell::kPolyline;
-    m.cells = ReadSeries(g, "alive_segments", 2, false, 4);
-    m.points = ReadSeries(g, "xdmf_points", 3, true, 4);
+    m.cells = ReadSeries(g, layout::kAliveSegments, 2, false, 4);
+    m.points = ReadSeries(g, layout::kXdmfPoints, 3, true, 4);
     run.meshes.push_back(std::move(m));
   }
   return run;

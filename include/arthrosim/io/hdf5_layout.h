@@ -72,6 +72,19 @@ inline AnchorState AnchorFromRow(const double* r) {
   return a;
 }
 
+// Datasets that are not State fields (those take their names from the State field table,
+// core/state_fields.h): the event stream, per-entity counts and views derived for readers.
+inline constexpr const char* kEvents = "events";
+inline constexpr const char* kEventsEnd = "events_end";
+inline constexpr const char* kNodeCount = "node_count";
+inline constexpr const char* kElementCount = "element_count";
+inline constexpr const char* kAliveElements = "alive_elements";
+inline constexpr const char* kAliveSegments = "alive_segments";
+inline constexpr const char* kXdmfPoints = "xdmf_points";
+inline constexpr const char* kActive = "active";  ///< /tools/<instrument>: inserted in a slot
+inline constexpr const char* kSlot = "slot";      ///< /tools/<instrument>: the slot holding it
+inline constexpr const char* kRows = "rows";      ///< the records of /constraints, /tool_contacts
+
 /// The groups below /<kind> (e.g. "bodies") in Model order (their "index" attribute); empty if
 /// the file has no such group.
 std::vector<h5::Group> OrderedGroups(const h5::Group& root, const char* kind);
