@@ -8,22 +8,13 @@
 #include <cstring>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/hdf5_handle.h"
 #include "arthrosim/input/session.h"
 
 namespace arthrosim::input {
 namespace {
 
-/// Closes an HDF5 id on scope exit.
-struct Id {
-  hid_t id = -1;
-  herr_t (*close)(hid_t) = nullptr;
-  Id(hid_t i, herr_t (*c)(hid_t)) : id(i), close(c) {}
-  Id(const Id&) = delete;
-  Id& operator=(const Id&) = delete;
-  ~Id() {
-    if (id >= 0 && close != nullptr) close(id);
-  }
-};
+using h5::Handle;
 
 /// Silences HDF5's automatic error printing for the lifetime of the guard.
 struct QuietHdf5 {
@@ -45,12 +36,12 @@ class Reader {
 
   /// Reads a float64 dataset of shape [n] (cols = 0) or [n, cols]; sets n on first call.
   std::vector<double> Doubles(const char* ds, int cols, hsize_t* n) const {
-    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
-    if (d.id < 0) Fail(ds, 0, "missing dataset");
-    Id space(H5Dget_space(d.id), H5Sclose);
+    Handle d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.get() < 0) Fail(ds, 0, "missing dataset");
+    Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[2] = {0, 0};
-    const int rank = H5Sget_simple_extent_ndims(space.id);
-    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    const int rank = H5Sget_simple_extent_ndims(space.get());
+    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
     const int want_rank = cols == 0 ? 1 : 2;
     if (rank != want_rank || (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
       Fail(ds, 0,
@@ -59,7 +50,7 @@ class Reader {
     CheckRows(ds, dims[0], n);
     std::vector<double> v(dims[0] * std::max(cols, 1));
     if (!v.empty() &&
-        H5Dread(d.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
+        H5Dread(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
       Fail(ds, 0, "cannot read as float64");
     }
     for (std::size_t i = 0; i < v.size(); ++i) {
@@ -73,33 +64,33 @@ class Reader {
   }
 
   std::vector<std::string> Strings(const char* ds, hsize_t* n) const {
-    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
-    if (d.id < 0) Fail(ds, 0, "missing dataset");
-    Id ftype(H5Dget_type(d.id), H5Tclose);
-    if (H5Tget_class(ftype.id) != H5T_STRING) Fail(ds, 0, "expected a string dataset");
-    Id space(H5Dget_space(d.id), H5Sclose);
+    Handle d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.get() < 0) Fail(ds, 0, "missing dataset");
+    Handle ftype(H5Dget_type(d.get()), H5Tclose);
+    if (H5Tget_class(ftype.get()) != H5T_STRING) Fail(ds, 0, "expected a string dataset");
+    Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[1] = {0};
-    if (H5Sget_simple_extent_ndims(space.id) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
+    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
     CheckRows(ds, dims[0], n);
     std::vector<std::string> out(dims[0]);
     if (dims[0] == 0) return out;
-    if (H5Tis_variable_str(ftype.id) > 0) {
-      Id mtype(H5Tcopy(H5T_C_S1), H5Tclose);
-      H5Tset_size(mtype.id, H5T_VARIABLE);
+    if (H5Tis_variable_str(ftype.get()) > 0) {
+      Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(mtype.get(), H5T_VARIABLE);
       std::vector<char*> p(dims[0], nullptr);
-      if (H5Dread(d.id, mtype.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, p.data()) < 0) {
+      if (H5Dread(d.get(), mtype.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, p.data()) < 0) {
         Fail(ds, 0, "cannot read strings");
       }
       for (hsize_t i = 0; i < dims[0]; ++i) out[i] = p[i] ? p[i] : "";
-      H5Dvlen_reclaim(mtype.id, space.id, H5P_DEFAULT, p.data());
+      H5Dvlen_reclaim(mtype.get(), space.get(), H5P_DEFAULT, p.data());
     } else {
-      const std::size_t len = H5Tget_size(ftype.id);
-      Id mtype(H5Tcopy(H5T_C_S1), H5Tclose);
-      H5Tset_size(mtype.id, len);
-      H5Tset_strpad(mtype.id, H5T_STR_NULLPAD);
+      const std::size_t len = H5Tget_size(ftype.get());
+      Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(mtype.get(), len);
+      H5Tset_strpad(mtype.get(), H5T_STR_NULLPAD);
       std::vector<char> buf(len * dims[0], '\0');
-      if (H5Dread(d.id, mtype.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()) < 0) {
+      if (H5Dread(d.get(), mtype.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()) < 0) {
         Fail(ds, 0, "cannot read strings");
       }
       for (hsize_t i = 0; i < dims[0]; ++i) {
@@ -111,16 +102,16 @@ class Reader {
   }
 
   std::vector<std::uint8_t> Bytes(const char* ds, hsize_t* n) const {
-    Id d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
-    if (d.id < 0) Fail(ds, 0, "missing dataset");
-    Id space(H5Dget_space(d.id), H5Sclose);
+    Handle d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
+    if (d.get() < 0) Fail(ds, 0, "missing dataset");
+    Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[1] = {0};
-    if (H5Sget_simple_extent_ndims(space.id) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.id, dims, nullptr);
+    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
+    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
     CheckRows(ds, dims[0], n);
     std::vector<std::int64_t> v(dims[0]);
     if (!v.empty() &&
-        H5Dread(d.id, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
+        H5Dread(d.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
       Fail(ds, 0, "cannot read as integers");
     }
     std::vector<std::uint8_t> out(v.size());
@@ -153,11 +144,11 @@ template <class T>
 void WriteDataset(const std::string& path, hid_t group, const char* name, hid_t mem_type,
                   hid_t file_type, const std::vector<T>& data, hsize_t rows, hsize_t cols) {
   hsize_t dims[2] = {rows, cols};
-  Id space(H5Screate_simple(cols == 0 ? 1 : 2, dims, nullptr), H5Sclose);
-  Id d(H5Dcreate2(group, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-       H5Dclose);
-  if (d.id < 0 ||
-      (rows > 0 && H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)) {
+  Handle space(H5Screate_simple(cols == 0 ? 1 : 2, dims, nullptr), H5Sclose);
+  Handle d(H5Dcreate2(group, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+           H5Dclose);
+  if (d.get() < 0 ||
+      (rows > 0 && H5Dwrite(d.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)) {
     throw InputError(path, 0, name, "cannot write HDF5 dataset");
   }
 }
@@ -166,8 +157,8 @@ void WriteDataset(const std::string& path, hid_t group, const char* name, hid_t 
 
 SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
   QuietHdf5 quiet;
-  Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (file.id < 0) throw InputError(path, 0, "", "cannot open as an HDF5 file");
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (file.get() < 0) throw InputError(path, 0, "", "cannot open as an HDF5 file");
   SessionTable table;
   table.file = path;
   std::vector<std::vector<SessionRow>> per_device(kDeviceCount);
@@ -175,11 +166,11 @@ SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& opti
   for (int d = 0; d < kDeviceCount; ++d) {
     const Device dev = static_cast<Device>(d);
     const char* name = DeviceName(dev);
-    if (H5Lexists(file.id, name, H5P_DEFAULT) <= 0) continue;
-    Id group(H5Gopen2(file.id, name, H5P_DEFAULT), H5Gclose);
-    if (group.id < 0) throw InputError(path, 0, std::string("/") + name, "expected a group");
+    if (H5Lexists(file.get(), name, H5P_DEFAULT) <= 0) continue;
+    Handle group(H5Gopen2(file.get(), name, H5P_DEFAULT), H5Gclose);
+    if (group.get() < 0) throw InputError(path, 0, std::string("/") + name, "expected a group");
     any = true;
-    Reader rd(path, group.id, name);
+    Reader rd(path, group.get(), name);
     hsize_t n = static_cast<hsize_t>(-1);
     const std::vector<double> t = rd.Doubles("t", 0, &n);
     const std::vector<double> p = rd.Doubles("position", 3, &n);
@@ -230,8 +221,8 @@ SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& opti
 
 void WriteSessionHdf5(const std::string& path, const SessionTable& table) {
   QuietHdf5 quiet;
-  Id file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  if (file.id < 0) throw InputError(path, 0, "", "cannot create HDF5 file");
+  Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (file.get() < 0) throw InputError(path, 0, "", "cannot create HDF5 file");
   for (int d = 0; d < kDeviceCount; ++d) {
     const Device dev = static_cast<Device>(d);
     std::vector<double> t, p, q, jaw, lens, head;
@@ -252,25 +243,26 @@ void WriteSessionHdf5(const std::string& path, const SessionTable& table) {
       head.push_back(r.head_roll_rad);
     }
     if (t.empty()) continue;
-    Id group(H5Gcreate2(file.id, DeviceName(dev), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-    if (group.id < 0) throw InputError(path, 0, DeviceName(dev), "cannot create group");
+    Handle group(H5Gcreate2(file.get(), DeviceName(dev), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                 H5Gclose);
+    if (group.get() < 0) throw InputError(path, 0, DeviceName(dev), "cannot create group");
     const hsize_t n = t.size();
-    WriteDataset(path, group.id, "t", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, t, n, 0);
-    WriteDataset(path, group.id, "position", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, p, n, 3);
-    WriteDataset(path, group.id, "orientation", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, q, n, 4);
+    WriteDataset(path, group.get(), "t", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, t, n, 0);
+    WriteDataset(path, group.get(), "position", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, p, n, 3);
+    WriteDataset(path, group.get(), "orientation", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, q, n, 4);
     if (dev == Device::kScope) {
-      WriteDataset(path, group.id, "lens_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, lens, n, 0);
-      WriteDataset(path, group.id, "head_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, head, n, 0);
+      WriteDataset(path, group.get(), "lens_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, lens, n, 0);
+      WriteDataset(path, group.get(), "head_roll", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, head, n, 0);
     } else {
-      WriteDataset(path, group.id, "jaw", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, jaw, n, 0);
-      WriteDataset(path, group.id, "buttons", H5T_NATIVE_UINT8, H5T_STD_U8LE, buttons, n, 0);
+      WriteDataset(path, group.get(), "jaw", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, jaw, n, 0);
+      WriteDataset(path, group.get(), "buttons", H5T_NATIVE_UINT8, H5T_STD_U8LE, buttons, n, 0);
       std::vector<char> buf(n * max_len, '\0');
       for (hsize_t i = 0; i < n; ++i)
         std::memcpy(buf.data() + i * max_len, instr[i].data(), instr[i].size());
-      Id stype(H5Tcopy(H5T_C_S1), H5Tclose);
-      H5Tset_size(stype.id, max_len);
-      H5Tset_strpad(stype.id, H5T_STR_NULLPAD);
-      WriteDataset(path, group.id, "instrument", stype.id, stype.id, buf, n, 0);
+      Handle stype(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(stype.get(), max_len);
+      H5Tset_strpad(stype.get(), H5T_STR_NULLPAD);
+      WriteDataset(path, group.get(), "instrument", stype.get(), stype.get(), buf, n, 0);
     }
   }
 }

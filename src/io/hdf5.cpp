@@ -95,21 +95,6 @@ std::string LibraryVersion() {
 
 // ---- Handle ----------------------------------------------------------------------------------
 
-Handle& Handle::operator=(Handle&& o) noexcept {
-  if (this != &o) {
-    Reset();
-    id_ = o.id_;
-    close_ = o.close_;
-    o.id_ = -1;
-  }
-  return *this;
-}
-
-void Handle::Reset() noexcept {
-  if (id_ >= 0 && close_ != nullptr && H5Iis_valid(id_) > 0) close_(id_);
-  id_ = -1;
-}
-
 // ---- Object: attributes ---------------------------------------------------------------------
 
 void Object::Check(std::int64_t status, const std::string& what) const {

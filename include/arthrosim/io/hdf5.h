@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/hdf5_handle.h"
+
 namespace arthrosim::io::h5 {
 
 /// An HDF5 failure: "HDF5: <what> (file '<file>', object '<object>'): <library message>".
@@ -22,25 +24,8 @@ class Error : public std::runtime_error {
 template <class T>
 hid_t NativeType();
 
-/// Owns one hid_t and closes it with the right H5*close on destruction. Move-only.
-class Handle {
- public:
-  Handle() = default;
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  Handle(Handle&& o) noexcept { *this = std::move(o); }
-  Handle& operator=(Handle&& o) noexcept;
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  ~Handle() { Reset(); }
-  /// Closes the id now (errors ignored: destructors must not throw).
-  void Reset() noexcept;
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_ = -1;
-  herr_t (*close_)(hid_t) = nullptr;
-};
+/// The RAII owner of an HDF5 id (core/hdf5_handle.h).
+using arthrosim::h5::Handle;
 
 /// A group or dataset: something with a path that carries attributes.
 class Object {
