@@ -193,7 +193,7 @@ TEST(ScriptValidation, ErrorsNameFileLineAndField) {
       {"name: x\nslot0:\n  - jump: {}\n", "t.yaml:3: field 'slot0[0]': unknown action 'jump'"},
       {"name: x\ncamera:\n  - move: {look_at: slot2}\n",
        "t.yaml:3: field 'camera[0].move.look_at': unknown landmark 'slot2'"},
-      {"name: x\nspeed: 2\n", "t.yaml:2: field '.speed': unknown key 'speed'"},
+      {"name: x\nspeed: 2\n", "t.yaml:2: field 'speed': unknown key 'speed'"},
       {"name: x\nslot0: [\n", "t.yaml:3: YAML syntax"},
       {"name: x\nnoise: {tremor_amplitude: -1}\n", "field 'noise.tremor_amplitude': must be >= 0"},
       {"name: x\nslot0:\n  - pick: {instrument: hook, toward: spur_tip, duration: abc}\n",
