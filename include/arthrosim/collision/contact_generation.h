@@ -3,21 +3,23 @@
 // solvers take, the tool-bone reaction forces, and afterwards the tool forces and contact
 // events. See docs/contact-model.md for the model and its parameters.
 //
-// Call order in the sim step:
-//   1. prev_tools = state.tools                     (before the instrument kinematics stage)
-//   2. instrument kinematics moves state.tools to this step's pose and jaw
-//   3. Detect(model, state, prev_tools, params, &world, &out)      (tissue/thread at t_n)
-//   4. soft and thread solvers take out.contacts, fill force_n
-//   5. state.tools[s].force_n = ToolForces(out)[s]
-//   6. UpdateContactEvents(model, state, out, &state.tool_contacts, &state.events)
-// CollisionWorld is Workspace (trees, surfaces): rebuilding it from any State gives the same
-// contacts bit for bit, so it need not be saved. state.tool_contacts (the last step's touching
-// (tool, body) pairs) must be in State: the events of the next step depend on it.
+// Where it sits in the sim step (src/sim/step.cpp is the reference for the order):
+//   prev_tools = state.tools, then the tool kinematics move state.tools to this step's pose
+//   Detect(model, state, prev_tools, params, &world, &out)    tissue and threads at t_n
+//   the constraint springs are built, the soft and thread solvers take out.contacts and fill
+//   their force_n
+//   state.tools[s].force_n = ToolForces(out)[s] minus the reactions of tool-held springs
+//   the clock advances, then UpdateContactEvents(model, state, out, &state.tool_contacts,
+//   &state.events) and the instrument actions
+// CollisionWorld is Workspace (trees, surfaces, work lists): rebuilding it from any State gives
+// the same contacts bit for bit, so it need not be saved. state.tool_contacts (the last step's
+// touching (tool, body) pairs) must be in State: the events of the next step depend on it.
 #include <array>
 #include <cstdint>
 #include <vector>
 
 #include "arthrosim/collision/collision_mesh.h"
+#include "arthrosim/collision/contact_scratch.h"
 #include "arthrosim/collision/instrument_shape.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
@@ -144,6 +146,8 @@ struct CollisionWorld {
   std::vector<BoneEntry> bones;
   std::vector<ThreadEntry> threads;
   std::int64_t rebuilds = 0;  ///< tree (re)builds so far (diagnostics)
+  /// Work lists of Detect (per task, merge, sort): kept so a steady step allocates nothing.
+  DetectScratch scratch;
 };
 
 /// Brings the world up to date with `state`: refits soft-body trees, rebuilds those whose

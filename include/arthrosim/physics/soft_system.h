@@ -30,6 +30,7 @@
 #include "arthrosim/physics/cg_solver.h"
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/corotational_fem.h"
+#include "arthrosim/physics/soft_stages.h"
 
 namespace arthrosim::physics {
 
@@ -54,27 +55,6 @@ enum class Preconditioner : std::uint8_t {
                   ///< end positions (kept in State, so a restored run rebuilds the same factor)
 };
 
-/// Timings (CPU time of the process, ms: all threads, steady on a shared machine) and solver
-/// figures of one Step.
-struct SoftStepStats {
-  double rotations_ms = 0;  ///< polar rotations + elastic forces
-  double assembly_ms = 0;   ///< matrix, preconditioner (incl. any refactorisation), contacts, rhs
-  double factor_ms = 0;     ///< part of assembly_ms spent (re)analysing/factoring, 0 if reused
-  double solve_ms = 0;      ///< CG
-  double update_ms = 0;     ///< integration and write-back to State
-  double total_ms = 0;
-  int cg_iterations = 0;
-  double cg_relative_residual = 0;   ///< final |b - A dv| / max(|b|, h |W|), W the weight
-  bool refactored = false;           ///< the preconditioner was factored in this step
-  bool anchor_moved = false;         ///< this step set x_factor (refactor at the next step)
-  std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
-  std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
-  std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
-  /// Extra solves for contacts that were apart at the start of the step and crossed within it
-  /// (cg_iterations counts all solves).
-  int contact_resolves = 0;
-};
-
 /// Energies of the soft bodies, micro-joules (mN mm = kg mm^2/s^2).
 struct SoftEnergies {
   double kinetic_uj = 0;
@@ -89,7 +69,7 @@ struct NodeRef {
   std::int32_t node = -1;
 };
 
-class SoftSystem {
+class SoftSystem final : public SoftStages {
  public:
   SoftSystem();
   ~SoftSystem();
@@ -156,10 +136,24 @@ class SoftSystem {
   Points ElasticForces(const Model& model, const State& state, int body) const;
   std::int32_t slot_count() const { return slots_; }
 
- private:
-  friend class ArkodeIntegrator;
-  friend struct ArkodeBridge;
+  // ---- Stages of an external integrator (SoftStages; see soft_stages.h) ----
 
+  std::int32_t stage_slots() const override { return slots_; }
+  void BeginExternalStep(const State& state, Eigen::Ref<Eigen::VectorXd> x_mm,
+                         Eigen::Ref<Eigen::VectorXd> v_mm_s) override;
+  void EvaluateRates(const Model& model, const Eigen::VectorXd& x_mm, const Eigen::VectorXd& v_mm_s,
+                     ContactSet* contacts, SpringSet* springs, Eigen::Ref<Eigen::VectorXd> dx,
+                     Eigen::Ref<Eigen::VectorXd> dv) override;
+  CgResult SolveNewtonSystem(const Model& model, double gamma_s, const Eigen::VectorXd& xz_mm,
+                             const Eigen::VectorXd& bx, const Eigen::VectorXd& bv,
+                             ContactSet* contacts, SpringSet* springs,
+                             Eigen::Ref<Eigen::VectorXd> ox,
+                             Eigen::Ref<Eigen::VectorXd> ov) override;
+  SoftStepStats FinishExternalStep(const Model& model, const Eigen::VectorXd& x_mm,
+                                   const Eigen::VectorXd& v_mm_s, const Eigen::VectorXd& v_old_mm_s,
+                                   ContactSet* contacts, SpringSet* springs, State* state) override;
+
+ private:
   struct ElemRef {
     std::int32_t body;
     std::int32_t tet;
@@ -192,13 +186,18 @@ class SoftSystem {
 
   // Layout and bookkeeping.
   void Layout(const Model& model, const State& state);
+  void LayoutBodies(const Model& model, const State& state);
+  void LayoutSlots();
+  void MatchJoins(const Model& model, const State& state);
+  void MarkFixedNodes(const Model& model);
+  void ResetStepVectors();
   void AddElement(int body, std::int32_t tet, const SoftBodyState& sb);
   void RemoveElement(int body, std::int32_t tet);
   void RecomputeSlot(std::int32_t slot);
   void RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb);
   bool NeedsRebuild(int body, std::int32_t new_nodes) const;
 
-  // Step stages (shared with the ARKODE integrator).
+  // Step stages (the built-in implicit Euler and the external stages above use them).
   void Gather(const State& state);
   void ComputeRotationsAndForces(const Eigen::VectorXd& x);
   void AddGravity(const Model& model);
