@@ -197,22 +197,7 @@ void Detect(const Model& model, const State& state,
   SortContacts(&world->scratch, out);
 }
 
-CollisionParams ParamsFromModel(const ContactOptions& c) {
-  CollisionParams p;
-  p.alarm_distance_mm = c.alarm_distance_mm;
-  p.contact_distance_mm = c.contact_distance_mm;
-  p.max_depth_mm = c.max_depth_mm;
-  p.sweep_fraction = c.sweep_fraction;
-  p.max_substeps = c.max_substeps;
-  p.tool_tissue_stiffness_n_per_mm = c.tool_tissue_stiffness_n_per_mm;
-  p.tool_thread_stiffness_n_per_mm = c.tool_thread_stiffness_n_per_mm;
-  p.tool_volume_stiffness_n_per_mm = c.tool_volume_stiffness_n_per_mm;
-  p.thread_tissue_stiffness_n_per_mm = c.thread_tissue_stiffness_n_per_mm;
-  p.tissue_tissue_stiffness_n_per_mm = c.tissue_tissue_stiffness_n_per_mm;
-  p.bone_stiffness_n_per_mm = c.bone_stiffness_n_per_mm;
-  p.tool_bone_stiffness_n_per_mm = c.tool_bone_stiffness_n_per_mm;
-  return p;
-}
+CollisionParams ParamsFromModel(const ContactOptions& c) { return c; }
 
 std::array<Vec3, kToolSlots> ToolForces(const CollisionOutput& out) {
   std::array<Vec3, kToolSlots> f = out.bone_force_n;

@@ -42,6 +42,9 @@ void SoftSystem::Build(const Model& model, const State& state) {
                           " soft bodies, model has ", std::to_string(model.soft_bodies.size())}));
   }
   arkode_.reset();
+  product_ = model.solver.product;
+  preconditioner_ = model.solver.preconditioner;
+  refactor_iterations_ = model.solver.refactor_iterations;
   pattern_dirty_ = true;
   rest_dirty_ = true;
   anchor_dirty_ = true;

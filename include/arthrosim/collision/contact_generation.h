@@ -27,34 +27,11 @@
 
 namespace arthrosim::collision {
 
-/// Contact parameters (docs/contact-model.md explains each choice).
-struct CollisionParams {
-  double alarm_distance_mm = 1.0;    ///< gap below which a contact is handed to the solver
-  double contact_distance_mm = 0.1;  ///< gap the penalty keeps (skin); > 0 so touching is visible
-  double max_depth_mm = 1.5;         ///< tissue/thread points deeper than this behind a surface are
-                              ///< considered passed through (sutures, attachments): no contact
-  double sweep_fraction = 0.5;                  ///< tool sweep substep <= this * alarm_distance_mm
-  int max_substeps = 64;                        ///< cap on tool sweep substeps per step
-  double tool_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point
-  double tool_thread_stiffness_n_per_mm = 2.0;  ///< per contact point
-  /// Sharp points (awl) also hold the material they enter and their path's surface crossings
-  /// (docs/contact-model.md "Sharp points"); false only to show what happens without.
-  bool sharp_point_volume_contacts = true;
-  /// Per plane of those contacts (four planes per material point).
-  double tool_volume_stiffness_n_per_mm = 20.0;
-  double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides)
-  double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides)
-  double bone_stiffness_n_per_mm =
-      2.0;  ///< tissue-bone, bone tip-tissue and thread-bone, per point
-  double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the (kinematic) tool, per part
-  /// Tissue-tissue contacts between different soft bodies; false only to show what happens
-  /// without.
-  bool tissue_tissue_contacts = true;
-  /// Salient bone vertices (a spur tip) against soft triangles; false only to show the gap.
-  bool bone_tip_contacts = true;
-};
+/// Contact parameters: the Model's contact options (core/model.h, scenario section `contact:`;
+/// docs/contact-model.md explains each choice). Tests may pass changed copies.
+using CollisionParams = ContactOptions;
 
-/// The parameters of a scenario's `contact:` section (defaults where it is silent).
+/// The parameters of a scenario's `contact:` section (a copy of `contact`).
 CollisionParams ParamsFromModel(const ContactOptions& contact);
 
 /// Bone triangles near each query slot (soft surface vertices, thread nodes and segments): the

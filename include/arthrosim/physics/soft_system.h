@@ -36,24 +36,9 @@ namespace arthrosim::physics {
 
 class ArkodeIntegrator;
 
-/// How the CG applies the system matrix.
-enum class SystemProduct : std::uint8_t {
-  kAssembled,   ///< 3x3 block-sparse matrix assembled once per step (default, faster)
-  kMatrixFree,  ///< element-by-element product R K_e R^T at every CG iteration
-};
-
-/// CG preconditioner.
-enum class Preconditioner : std::uint8_t {
-  kBlockJacobi,   ///< inverse 3x3 diagonal blocks of the current system matrix
-  kRestCholesky,  ///< "warped" anchored factorisation: P^-1 = W Ka^-1 W^T with Ka the sparse
-                  ///< LDLT of the system with the element rotations of the anchor positions
-                  ///< SoftBodyState::x_factor (the rest positions while it is empty), and
-                  ///< W per-node rotations taking the anchor's node rotations to the current
-                  ///< ones (node rotation: polar of the sum of the incident element rotations).
-                  ///< Refactored after a topology/rest change, a new dt or a new anchor; a step
-                  ///< whose CG needs more than refactor_iterations() sets the anchor to its
-                  ///< end positions (kept in State, so a restored run rebuilds the same factor)
-};
+// The product and preconditioner choices are Model options (core/model.h, SolverOptions).
+using arthrosim::Preconditioner;
+using arthrosim::SystemProduct;
 
 /// Energies of the soft bodies, micro-joules (mN mm = kg mm^2/s^2).
 struct SoftEnergies {
@@ -76,7 +61,8 @@ class SoftSystem final : public SoftStages {
   SoftSystem(SoftSystem&&) noexcept;
   SoftSystem& operator=(SoftSystem&&) noexcept;
 
-  /// Builds everything from (model, state): joins, slots, element rest data, masses, pattern.
+  /// Builds everything from (model, state): joins, slots, element rest data, masses, pattern;
+  /// takes the product, preconditioner and refactor_iterations from model.solver.
   void Build(const Model& model, const State& state);
 
   /// Advances every soft body by one step of model.options.dt_s with the integrator of
@@ -112,11 +98,7 @@ class SoftSystem final : public SoftStages {
 
   // ---- Queries ----
 
-  void set_product(SystemProduct product) { product_ = product; }
-  void set_preconditioner(Preconditioner p) { preconditioner_ = p; }
-  /// A step needing more CG iterations than this moves the factor anchor (0 = never: the
-  /// preconditioner stays the warped rest factor unless x_factor is set from outside).
-  void set_refactor_iterations(int n) { refactor_iterations_ = n; }
+  /// The settings Build took from model.solver (product, preconditioner, refactor_iterations).
   int refactor_iterations() const { return refactor_iterations_; }
   Preconditioner preconditioner() const { return preconditioner_; }
   SystemProduct product() const { return product_; }
@@ -260,9 +242,7 @@ class SoftSystem final : public SoftStages {
   bool anchor_dirty_ = true;   // anchor positions changed: refactor
   bool refactored_ = false;
   double factor_ms_ = 0;
-  // 10: with the ~5 ms refactorisation, bench_full driven gives median 2.6 / mean 3.3 ms
-  // (12: 2.9 / 3.2; 8: 2.5 / 3.8).
-  int refactor_iterations_ = 10;
+  int refactor_iterations_ = 10;  // from SolverOptions::refactor_iterations
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
