@@ -32,7 +32,8 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   m->options.seed = static_cast<std::uint64_t>(root.Integer("seed", 1, 0));
   if (root.Has("solver")) {
     YamlSection s(root.reader(), root.Get("solver"), "solver",
-                  {"integrator", "cg_max_iterations", "cg_tolerance"});
+                  {"integrator", "cg_max_iterations", "cg_tolerance", "product", "preconditioner",
+                   "refactor_iterations"});
     const std::string integrator = s.String("integrator", "implicit_euler");
     if (integrator == "implicit_euler") {
       m->solver.integrator = Integrator::kImplicitEuler;
@@ -44,6 +45,24 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
     }
     m->solver.cg_max_iterations = static_cast<int>(s.Integer("cg_max_iterations", 100, 1));
     m->solver.cg_tolerance = s.Positive("cg_tolerance", 1e-8);
+    const std::string product = s.String("product", "assembled");
+    if (product == "assembled") {
+      m->solver.product = SystemProduct::kAssembled;
+    } else if (product == "matrix_free") {
+      m->solver.product = SystemProduct::kMatrixFree;
+    } else {
+      s.Fail("product", "expected assembled or matrix_free, got '" + product + "'");
+    }
+    const std::string pre = s.String("preconditioner", "rest_cholesky");
+    if (pre == "rest_cholesky") {
+      m->solver.preconditioner = Preconditioner::kRestCholesky;
+    } else if (pre == "block_jacobi") {
+      m->solver.preconditioner = Preconditioner::kBlockJacobi;
+    } else {
+      s.Fail("preconditioner", "expected rest_cholesky or block_jacobi, got '" + pre + "'");
+    }
+    m->solver.refactor_iterations =
+        static_cast<int>(s.Integer("refactor_iterations", m->solver.refactor_iterations, 0));
   }
   if (root.Has("output")) {
     YamlSection o(root.reader(), root.Get("output"), "output", {"file", "every", "flush_interval"});
@@ -57,9 +76,10 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
 void ReadContact(const YamlSection& root, Model* m) {
   if (!root.Has("contact")) return;
   ContactOptions& c = m->contact;
-  YamlSection s(root.reader(), root.Get("contact"), "contact",
-                {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction",
-                 "max_substeps", "stiffness"});
+  YamlSection s(
+      root.reader(), root.Get("contact"), "contact",
+      {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction", "max_substeps",
+       "stiffness", "sharp_point_volume_contacts", "tissue_tissue_contacts", "bone_tip_contacts"});
   c.alarm_distance_mm = s.Positive("alarm_distance", c.alarm_distance_mm);
   c.contact_distance_mm = s.Positive("contact_distance", c.contact_distance_mm);
   if (!(c.contact_distance_mm < c.alarm_distance_mm)) {
@@ -78,6 +98,10 @@ void ReadContact(const YamlSection& root, Model* m) {
   if (c.max_substeps > 4096) {
     root.reader().Fail(s.Get("max_substeps"), s.Field("max_substeps"), "must be <= 4096");
   }
+  c.sharp_point_volume_contacts =
+      s.Bool("sharp_point_volume_contacts", c.sharp_point_volume_contacts);
+  c.tissue_tissue_contacts = s.Bool("tissue_tissue_contacts", c.tissue_tissue_contacts);
+  c.bone_tip_contacts = s.Bool("bone_tip_contacts", c.bone_tip_contacts);
   if (!s.Has("stiffness")) return;
   YamlSection k(root.reader(), s.Get("stiffness"), s.Field("stiffness"),
                 {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue",
@@ -91,6 +115,40 @@ void ReadContact(const YamlSection& root, Model* m) {
       k.Positive("tissue_tissue", c.tissue_tissue_stiffness_n_per_mm);
   c.bone_stiffness_n_per_mm = k.Positive("bone", c.bone_stiffness_n_per_mm);
   c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
+}
+
+// Optional `thread_solver:` section: the suture solver's settings (docs/scenario-format.md).
+void ReadThreadSolver(const YamlSection& root, Model* m) {
+  if (!root.Has("thread_solver")) return;
+  ThreadSolverOptions& t = m->thread_solver;
+  YamlSection s(root.reader(), root.Get("thread_solver"), "thread_solver",
+                {"contact_stiffness", "contact_margin_factor", "max_newton_iterations",
+                 "max_active_set_passes", "max_strain", "strain_limit_passes", "newton_tolerance",
+                 "max_ccd_rounds", "ccd_samples", "ccd_close_fraction", "crossing_tolerance",
+                 "compression_stiffness_fraction", "speed_barrier_stiffness", "exclusion_factor"});
+  t.contact_stiffness_n_per_mm = s.Positive("contact_stiffness", t.contact_stiffness_n_per_mm);
+  t.contact_margin_factor = s.NonNegative("contact_margin_factor", t.contact_margin_factor);
+  t.max_newton_iterations =
+      static_cast<int>(s.Integer("max_newton_iterations", t.max_newton_iterations, 1));
+  t.max_active_set_passes =
+      static_cast<int>(s.Integer("max_active_set_passes", t.max_active_set_passes, 1));
+  t.max_strain = s.Positive("max_strain", t.max_strain);
+  t.strain_limit_passes =
+      static_cast<int>(s.Integer("strain_limit_passes", t.strain_limit_passes, 1));
+  t.newton_tolerance_mm = s.Positive("newton_tolerance", t.newton_tolerance_mm);
+  t.max_ccd_rounds = static_cast<int>(s.Integer("max_ccd_rounds", t.max_ccd_rounds, 0));
+  t.ccd_samples = static_cast<int>(s.Integer("ccd_samples", t.ccd_samples, 1));
+  t.ccd_close_fraction = s.NonNegative("ccd_close_fraction", t.ccd_close_fraction);
+  t.crossing_tolerance_mm = s.Positive("crossing_tolerance", t.crossing_tolerance_mm);
+  t.compression_stiffness_fraction =
+      s.NonNegative("compression_stiffness_fraction", t.compression_stiffness_fraction);
+  if (t.compression_stiffness_fraction > 1) {
+    s.Fail("compression_stiffness_fraction",
+           "must be in [0, 1] (a fraction of the stretch stiffness)");
+  }
+  t.speed_barrier_stiffness_n_per_mm =
+      s.Positive("speed_barrier_stiffness", t.speed_barrier_stiffness_n_per_mm);
+  t.exclusion_factor = s.NonNegative("exclusion_factor", t.exclusion_factor);
 }
 
 void ReadMaterials(const YamlSection& root, Model* m) {
@@ -402,10 +460,10 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   const YamlReader ctx(path);
   const YAML::Node doc = ParseYaml(text, path);
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
-  YamlSection root(
-      ctx, doc, "",
-      {"name", "seed", "time", "gravity", "solver", "output", "contact", "operations", "materials",
-       "bodies", "joins", "portals", "instruments", "camera", "landmarks", "regions"});
+  YamlSection root(ctx, doc, "",
+                   {"name", "seed", "time", "gravity", "solver", "output", "contact", "operations",
+                    "thread_solver", "materials", "bodies", "joins", "portals", "instruments",
+                    "camera", "landmarks", "regions"});
   Model m;
   m.scenario_path = path;
   m.scenario_text = text;
@@ -413,6 +471,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   m.name = root.String("name");
   ReadTimeAndSolver(root, &m);
   ReadContact(root, &m);
+  ReadThreadSolver(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
   ReadBodies(root, fs::path(path).parent_path(), &m, &pending_fixed);

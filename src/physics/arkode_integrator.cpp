@@ -11,6 +11,7 @@
 #include <string>
 
 #include "arthrosim/physics/cg_solver.h"
+#include "arthrosim/physics/soft_stages.h"
 
 namespace arthrosim::physics {
 
@@ -21,7 +22,7 @@ struct ArkodeIntegrator::Impl {
   SUNLinearSolver ls = nullptr;
   sunindextype size = 0;
   // Context of the current step, read by the callbacks.
-  SoftSystem* sys = nullptr;
+  SoftStages* sys = nullptr;
   const Model* model = nullptr;
   ContactSet* contacts = nullptr;
   SpringSet* springs = nullptr;
@@ -56,45 +57,23 @@ Eigen::Map<Eigen::VectorXd> Part(N_Vector v, Eigen::Index half, int which) {
 
 }  // namespace
 
-// Friend bridge: the callbacks use SoftSystem's private step stages through this struct.
+// The C callbacks of ARKODE and of the custom linear solver, on the SoftStages interface.
 struct ArkodeBridge {
   // ydot = [v; M^-1 (f(x) - alpha M v - beta K v)] on free slots, 0 elsewhere.
   static int Rhs(sunrealtype, N_Vector y, N_Vector ydot, void* data) {
     auto* im = static_cast<ArkodeIntegrator::Impl*>(data);
-    SoftSystem& s = *im->sys;
-    const Eigen::Index half = 3 * s.slots_;
+    const Eigen::Index half = 3 * im->sys->stage_slots();
     const Eigen::VectorXd x = Part(y, half, 0);
     const Eigen::VectorXd v = Part(y, half, 1);
-    s.ComputeRotationsAndForces(x);
-    s.AddGravity(*im->model);
-    s.BuildPointTerms(*im->model, x, im->contacts, im->springs, true);
-    std::vector<double> betas(s.bodies_.size());
-    for (std::size_t b = 0; b < betas.size(); ++b) betas[b] = s.bodies_[b].beta;
-    s.ApplyElementStiffness(v, betas, &s.tmp_);
-    auto dx = Part(ydot, half, 0);
-    auto dv = Part(ydot, half, 1);
-    for (std::int32_t k = 0; k < s.slots_; ++k) {
-      const auto i = static_cast<std::size_t>(k);
-      const Eigen::Index o = 3 * k;
-      if (!s.free_[i]) {
-        dx.segment<3>(o).setZero();
-        dv.segment<3>(o).setZero();
-        continue;
-      }
-      dx.segment<3>(o) = v.segment<3>(o);
-      dv.segment<3>(o) =
-          (s.f_.segment<3>(o) - s.alpha_mass_[i] * v.segment<3>(o) - s.tmp_.segment<3>(o)) /
-          s.mass_[i];
-    }
+    im->sys->EvaluateRates(*im->model, x, v, im->contacts, im->springs, Part(ydot, half, 0),
+                           Part(ydot, half, 1));
     return 0;
   }
 
-  // (I - gamma J) [dx; dv] = [bx; bv] with J the Jacobian of Rhs (rotations frozen):
-  //   A dv = M bv - gamma (K + C) bx,  A = (1 + gamma alpha) M + gamma (gamma + beta) K
-  //   + gamma^2 C,  dx = bx + gamma dv. The same A as the built-in implicit Euler with h = gamma.
+  // (I - gamma J) [dx; dv] = [bx; bv] with J the Jacobian of Rhs (rotations frozen): the same
+  // system as the built-in implicit Euler with h = gamma (SoftStages::SolveNewtonSystem).
   static int Solve(SUNLinearSolver ls, SUNMatrix, N_Vector x, N_Vector b, sunrealtype) {
     auto* im = static_cast<ArkodeIntegrator::Impl*>(ls->content);
-    SoftSystem& s = *im->sys;
     const auto t0 = std::chrono::steady_clock::now();
     sunrealtype tcur = 0, gamma = 0;
     N_Vector zpred = nullptr, z = nullptr, fi = nullptr, sdata = nullptr;
@@ -102,54 +81,14 @@ struct ArkodeBridge {
     // MATRIX_EMBEDDED: ARKLS never calls setup, so (re)linearise here at the current iterate.
     if (ARKStepGetNonlinearSystemData(im->ark, &tcur, &zpred, &z, &fi, &gamma, &sdata, &user) < 0)
       return -1;
-    const Eigen::Index half = 3 * s.slots_;
+    const Eigen::Index half = 3 * im->sys->stage_slots();
     const Eigen::VectorXd xz = Part(z, half, 0);
-    s.ComputeRotationsAndForces(xz);
-    s.AssembleStiffness(gamma, gamma, s.product_ == SystemProduct::kAssembled);
-    s.BuildPointTerms(*im->model, xz, nullptr, nullptr, false);
-    s.BuildPointTerms(*im->model, xz, im->contacts, im->springs, false);
-    s.BuildPreconditioner(gamma);
     const Eigen::VectorXd bx = Part(b, half, 0);
     const Eigen::VectorXd bv = Part(b, half, 1);
-    std::vector<double> ones(s.bodies_.size(), 1.0);
-    s.ApplyElementStiffness(bx, ones, &s.tmp_);
-    s.ApplyPointTerms(1.0, bx, &s.tmp_);
-    for (std::int32_t k = 0; k < s.slots_; ++k) {
-      const auto i = static_cast<std::size_t>(k);
-      const Eigen::Index o = 3 * k;
-      s.b_.segment<3>(o) =
-          s.free_[i] ? Eigen::Vector3d(s.mass_[i] * bv.segment<3>(o) - gamma * s.tmp_.segment<3>(o))
-                     : Eigen::Vector3d::Zero();
-    }
-    class Op final : public SpdOperator {
-     public:
-      explicit Op(SoftSystem& s) : s_(s) {}
-      void Apply(const Eigen::VectorXd& v, Eigen::VectorXd* y) const override {
-        s_.ApplySystem(v, y);
-      }
-      void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const override {
-        s_.Precondition(r, z);
-      }
-
-     private:
-      SoftSystem& s_;
-    } op(s);
-    const CgResult cg = SolvePcg(op, s.b_, &s.dv_, im->model->solver.cg_max_iterations,
-                                 im->model->solver.cg_tolerance);
+    const CgResult cg = im->sys->SolveNewtonSystem(*im->model, gamma, xz, bx, bv, im->contacts,
+                                                   im->springs, Part(x, half, 0), Part(x, half, 1));
     im->cg_iterations += cg.iterations;
     im->cg_residual = cg.relative_residual;
-    auto ox = Part(x, half, 0);
-    auto ov = Part(x, half, 1);
-    for (std::int32_t k = 0; k < s.slots_; ++k) {
-      const Eigen::Index o = 3 * k;
-      if (s.free_[static_cast<std::size_t>(k)]) {
-        ov.segment<3>(o) = s.dv_.segment<3>(o);
-        ox.segment<3>(o) = bx.segment<3>(o) + gamma * s.dv_.segment<3>(o);
-      } else {
-        ov.segment<3>(o) = bv.segment<3>(o);
-        ox.segment<3>(o) = bx.segment<3>(o);
-      }
-    }
     im->solve_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return cg.converged || cg.iterations >= im->model->solver.cg_max_iterations ? 0 : 1;
@@ -169,13 +108,13 @@ struct ArkodeBridge {
 ArkodeIntegrator::ArkodeIntegrator() : impl_(new Impl) {}
 ArkodeIntegrator::~ArkodeIntegrator() { delete impl_; }
 
-SoftStepStats ArkodeIntegrator::Step(SoftSystem* system, const Model& model, ContactSet* contacts,
+SoftStepStats ArkodeIntegrator::Step(SoftStages* system, const Model& model, ContactSet* contacts,
                                      SpringSet* springs, State* state) {
   using Clock = std::chrono::steady_clock;
   const auto t_start = Clock::now();
   Impl& im = *impl_;
-  SoftSystem& s = *system;
-  const sunindextype n = 6 * static_cast<sunindextype>(s.slots_);
+  const Eigen::Index half = 3 * system->stage_slots();
+  const sunindextype n = 2 * static_cast<sunindextype>(half);
   const double h = model.options.dt_s;
   if (im.size != n) {
     im.Release();
@@ -191,11 +130,8 @@ SoftStepStats ArkodeIntegrator::Step(SoftSystem* system, const Model& model, Con
     im.ls->ops->free = ArkodeBridge::Free;
     im.size = n;
   }
-  s.Gather(*state);
-  auto y = Part(im.y, 3 * s.slots_, 0);
-  y = s.x_;
-  Part(im.y, 3 * s.slots_, 1) = s.v_;
-  const Eigen::VectorXd v_old = s.v_;
+  system->BeginExternalStep(*state, Part(im.y, half, 0), Part(im.y, half, 1));
+  const Eigen::VectorXd v_old = Part(im.y, half, 1);
   // A fresh integrator every step: nothing but State carries over (restore-safe).
   if (im.ark) ARKStepFree(&im.ark);
   im.ark = ARKStepCreate(nullptr, ArkodeBridge::Rhs, state->time_s, im.y, im.ctx);
@@ -223,24 +159,13 @@ SoftStepStats ArkodeIntegrator::Step(SoftSystem* system, const Model& model, Con
   sunrealtype t = state->time_s;
   Check(ARKStepEvolve(im.ark, state->time_s + h, im.y, &t, ARK_ONE_STEP), "ARKStepEvolve");
 
-  SoftStepStats stats;
-  s.x_ = Part(im.y, 3 * s.slots_, 0);
-  s.v_ = Part(im.y, 3 * s.slots_, 1);
-  s.dv_ = s.v_ - v_old;
-  for (std::int32_t k = 0; k < s.slots_; ++k) {
-    if (s.free_[static_cast<std::size_t>(k)]) {
-      ++stats.active_nodes;
-    } else {
-      s.v_.segment<3>(3 * k).setZero();
-      s.dv_.segment<3>(3 * k).setZero();
-    }
-  }
-  s.Scatter(state);
-  s.FillOutputs(model, contacts, springs);
+  const Eigen::VectorXd x_end = Part(im.y, half, 0);
+  const Eigen::VectorXd v_end = Part(im.y, half, 1);
+  SoftStepStats stats =
+      system->FinishExternalStep(model, x_end, v_end, v_old, contacts, springs, state);
   stats.cg_iterations = im.cg_iterations;
   stats.cg_relative_residual = im.cg_residual;
   stats.solve_ms = im.solve_ms;
-  stats.active_contacts = static_cast<std::int32_t>(s.terms_.size());
   stats.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t_start).count();
   return stats;
 }

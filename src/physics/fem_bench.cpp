@@ -68,6 +68,7 @@ BeamBenchResult RunBeamBenchmark(const BeamBenchOptions& options) {
   model.solver.cg_max_iterations = options.cg_max_iterations;
   model.solver.cg_tolerance = options.cg_tolerance;
   model.solver.integrator = options.integrator;
+  model.solver.product = options.product;
   BeamBenchResult r;
   r.nodes = static_cast<int>(mesh.nodes.cols());
   r.tets = static_cast<int>(mesh.tets.size());
@@ -81,7 +82,6 @@ BeamBenchResult RunBeamBenchmark(const BeamBenchOptions& options) {
   }
   State state = MakeInitialState(model);
   sys.Build(model, state);
-  sys.set_product(options.product);
   double total = 0;
   std::vector<double> per_step;
   for (int i = 0; i < options.steps; ++i) {
@@ -152,15 +152,18 @@ void RefineByCentroidSplits(State* state, int levels) {
   }
 }
 
-SoftBenchResult RunSoftBenchmark(const Model& model, const SoftBenchOptions& options,
+SoftBenchResult RunSoftBenchmark(const Model& scenario, const SoftBenchOptions& options,
                                  const std::function<void(State*)>& after_step) {
   SoftBenchResult r;
-  if (model.soft_bodies.empty()) return r;
+  if (scenario.soft_bodies.empty()) return r;
+  Model model = scenario;  // with the benchmark's solver settings
+  if (options.refactor_iterations >= 0) {
+    model.solver.refactor_iterations = options.refactor_iterations;
+  }
+  model.solver.product = options.product;
   State state = MakeInitialState(model);
   RefineByCentroidSplits(&state, options.refine_levels);
   SoftSystem sys;
-  if (options.refactor_iterations >= 0) sys.set_refactor_iterations(options.refactor_iterations);
-  sys.set_product(options.product);
   sys.Build(model, state);
   for (const SoftBodyState& b : state.soft_bodies) {
     r.nodes += static_cast<int>(b.x.cols());

@@ -93,6 +93,7 @@ void ApplyInstrumentActions(const Model& model, const std::array<ToolState, kToo
 
 void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
   ws->soft.Build(model, state);
+  ws->threads.params = model.thread_solver;  // scenario `thread_solver:`
   physics::InitThreadWorkspace(model.threads, &ws->threads);
   ws->collision_params = collision::ParamsFromModel(model.contact);  // scenario `contact:`
   ws->collision = collision::CollisionWorld{};

@@ -31,13 +31,14 @@ void Report(benchmark::State& bs, const SoftStepStats& sum, int steps, int nodes
   bs.counters["tets"] = tets;
 }
 
-void RunSteps(benchmark::State& bs, const Model& model, State state, SystemProduct product,
+void RunSteps(benchmark::State& bs, const Model& scenario, State state, SystemProduct product,
               Preconditioner pre) {
   SetThreadCount(1);
+  Model model = scenario;
+  model.solver.product = product;
+  model.solver.preconditioner = pre;
   SoftSystem sys;
   sys.Build(model, state);
-  sys.set_product(product);
-  sys.set_preconditioner(pre);
   for (int k = 0; k < 20; ++k) sys.Step(model, nullptr, nullptr, &state);  // settle in a bit
   SoftStepStats sum;
   int steps = 0;

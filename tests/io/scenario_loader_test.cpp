@@ -219,5 +219,54 @@ TEST_F(ScenarioLoaderTest, BadContactValuesNameTheField) {
   EXPECT_EQ(LoadError(with("contact: 3")).field(), "contact");
 }
 
+TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
+  const Model m = LoadScenarioFromText(
+      Edit("seed: 7",
+           "seed: 7\nsolver: {product: matrix_free, preconditioner: block_jacobi, "
+           "refactor_iterations: 0}\n"
+           "contact: {tissue_tissue_contacts: false, bone_tip_contacts: false}\n"
+           "thread_solver: {contact_stiffness: 50, max_strain: 0.02, max_ccd_rounds: 0, "
+           "ccd_samples: 4, exclusion_factor: 2, newton_tolerance: 1e-6}"),
+      Path());
+  EXPECT_EQ(m.solver.product, SystemProduct::kMatrixFree);
+  EXPECT_EQ(m.solver.preconditioner, Preconditioner::kBlockJacobi);
+  EXPECT_EQ(m.solver.refactor_iterations, 0);
+  EXPECT_FALSE(m.contact.tissue_tissue_contacts);
+  EXPECT_FALSE(m.contact.bone_tip_contacts);
+  EXPECT_TRUE(m.contact.sharp_point_volume_contacts);
+  EXPECT_DOUBLE_EQ(m.thread_solver.contact_stiffness_n_per_mm, 50.0);
+  EXPECT_DOUBLE_EQ(m.thread_solver.max_strain, 0.02);
+  EXPECT_EQ(m.thread_solver.max_ccd_rounds, 0);
+  EXPECT_EQ(m.thread_solver.ccd_samples, 4);
+  EXPECT_DOUBLE_EQ(m.thread_solver.exclusion_factor, 2.0);
+  EXPECT_DOUBLE_EQ(m.thread_solver.newton_tolerance_mm, 1e-6);
+  EXPECT_EQ(m.thread_solver.max_newton_iterations, ThreadSolverOptions{}.max_newton_iterations);
+  const Model d = LoadScenarioFromText(Valid(), Path());
+  EXPECT_EQ(d.solver.preconditioner, Preconditioner::kRestCholesky);
+  EXPECT_EQ(d.solver.refactor_iterations, 10);
+  EXPECT_TRUE(d.contact.tissue_tissue_contacts);
+  EXPECT_DOUBLE_EQ(d.thread_solver.max_strain, 0.01);
+}
+
+TEST_F(ScenarioLoaderTest, BadOptionValuesNameTheField) {
+  auto with = [](const std::string& section) { return Edit("seed: 7", "seed: 7\n" + section); };
+  const InputError pre = LoadError(with("solver: {preconditioner: ilu}"));
+  EXPECT_EQ(pre.field(), "solver.preconditioner");
+  EXPECT_EQ(pre.line(), 3);
+  EXPECT_EQ(LoadError(with("solver: {product: sparse}")).field(), "solver.product");
+  EXPECT_EQ(LoadError(with("solver: {refactor_iterations: -1}")).field(),
+            "solver.refactor_iterations");
+  EXPECT_EQ(LoadError(with("contact: {bone_tip_contacts: maybe}")).field(),
+            "contact.bone_tip_contacts");
+  EXPECT_EQ(LoadError(with("thread_solver: {max_strain: 0}")).field(), "thread_solver.max_strain");
+  EXPECT_EQ(LoadError(with("thread_solver: {ccd_samples: 0}")).field(),
+            "thread_solver.ccd_samples");
+  EXPECT_EQ(LoadError(with("thread_solver: {compression_stiffness_fraction: 2}")).field(),
+            "thread_solver.compression_stiffness_fraction");
+  EXPECT_EQ(LoadError(with("thread_solver: {contact_stiffnes: 1}")).field(),
+            "thread_solver.contact_stiffnes");
+  EXPECT_EQ(LoadError(with("thread_solver: 3")).field(), "thread_solver");
+}
+
 }  // namespace
 }  // namespace arthrosim::io

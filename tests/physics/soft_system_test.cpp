@@ -429,9 +429,9 @@ TEST(SoftSystem, ThreadCountDoesNotChangeBits) {
 // iteration) and the run carries a lagged factor.
 TEST(SoftSystem, RestoreWithMovingFactorAnchorIsBitIdentical) {
   Model model = CoarseBeam(0.1, 0.01);
+  model.solver.refactor_iterations = 1;
   State s = MakeInitialState(model);
   SoftSystem a;
-  a.set_refactor_iterations(1);
   a.Build(model, s);
   int moved = 0;
   for (int k = 0; k < 8; ++k) moved += a.Step(model, nullptr, nullptr, &s).anchor_moved ? 1 : 0;
@@ -439,13 +439,46 @@ TEST(SoftSystem, RestoreWithMovingFactorAnchorIsBitIdentical) {
   ASSERT_GT(s.soft_bodies[0].x_factor.cols(), 0);
   State restored = s;
   SoftSystem b;
-  b.set_refactor_iterations(1);
   b.Build(model, restored);
   for (int k = 0; k < 8; ++k) {
     a.Step(model, nullptr, nullptr, &s);
     b.Step(model, nullptr, nullptr, &restored);
   }
   EXPECT_TRUE(BitwiseEqual(s, restored));
+}
+
+// The solver settings come from the Model (SolverOptions): Build takes them, and they act. The
+// warped factor needs few CG iterations; block Jacobi on the same steps needs many more.
+TEST(SoftSystem, BuildTakesTheSolverSettingsOfTheModel) {
+  Model model = CoarseBeam(0.1, 0.01);
+  const State start = MakeInitialState(model);
+  auto iterations = [&](const Model& m) {
+    State s = start;
+    SoftSystem sys;
+    sys.Build(m, s);
+    int total = 0;
+    for (int k = 0; k < 5; ++k) total += sys.Step(m, nullptr, nullptr, &s).cg_iterations;
+    return total;
+  };
+  SoftSystem defaults;
+  State s = start;
+  defaults.Build(model, s);
+  EXPECT_EQ(defaults.preconditioner(), Preconditioner::kRestCholesky);
+  EXPECT_EQ(defaults.product(), SystemProduct::kAssembled);
+  EXPECT_EQ(defaults.refactor_iterations(), 10);
+  const int factored = iterations(model);
+  model.solver.preconditioner = Preconditioner::kBlockJacobi;
+  model.solver.product = SystemProduct::kMatrixFree;
+  model.solver.refactor_iterations = 3;
+  SoftSystem changed;
+  s = start;
+  changed.Build(model, s);
+  EXPECT_EQ(changed.preconditioner(), Preconditioner::kBlockJacobi);
+  EXPECT_EQ(changed.product(), SystemProduct::kMatrixFree);
+  EXPECT_EQ(changed.refactor_iterations(), 3);
+  const int jacobi = iterations(model);
+  std::printf("CG iterations over 5 steps: rest_cholesky %d, block_jacobi %d\n", factored, jacobi);
+  EXPECT_GT(jacobi, 2 * factored);
 }
 
 }  // namespace

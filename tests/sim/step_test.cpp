@@ -132,5 +132,21 @@ TEST(StepTest, BadInstrumentIndexIsAnInputError) {
   EXPECT_THROW(Step(m, f, &s, &ws), InputError);
 }
 
+// The workspace's solver settings are the Model's options (one place: core/model.h).
+TEST(StepTest, WorkspaceTakesTheContactAndThreadSolverOptionsOfTheModel) {
+  Model m = SmallModel();
+  m.contact.bone_tip_contacts = false;
+  m.contact.alarm_distance_mm = 0.8;
+  m.thread_solver.max_strain = 0.03;
+  m.thread_solver.contact_stiffness_n_per_mm = 40;
+  const State s = MakeInitialState(m);
+  Workspace ws;
+  BuildWorkspace(m, s, &ws);
+  EXPECT_FALSE(ws.collision_params.bone_tip_contacts);
+  EXPECT_EQ(ws.collision_params.alarm_distance_mm, 0.8);
+  EXPECT_EQ(ws.threads.params.max_strain, 0.03);
+  EXPECT_EQ(ws.threads.params.contact_stiffness_n_per_mm, 40.0);
+}
+
 }  // namespace
 }  // namespace arthrosim::sim

@@ -3,21 +3,23 @@
 // solvers take, the tool-bone reaction forces, and afterwards the tool forces and contact
 // events. See docs/contact-model.md for the model and its parameters.
 //
-// Call order in the sim step:
-//   1. prev_tools = state.tools                     (before the instrument kinematics stage)
-//   2. instrument kinematics moves state.tools to this step's pose and jaw
-//   3. Detect(model, state, prev_tools, params, &world, &out)      (tissue/thread at t_n)
-//   4. soft and thread solvers take out.contacts, fill force_n
-//   5. state.tools[s].force_n = ToolForces(out)[s]
-//   6. UpdateContactEvents(model, state, out, &state.tool_contacts, &state.events)
-// CollisionWorld is Workspace (trees, surfaces): rebuilding it from any State gives the same
-// contacts bit for bit, so it need not be saved. state.tool_contacts (the last step's touching
-// (tool, body) pairs) must be in State: the events of the next step depend on it.
+// Where it sits in the sim step (src/sim/step.cpp is the reference for the order):
+//   prev_tools = state.tools, then the tool kinematics move state.tools to this step's pose
+//   Detect(model, state, prev_tools, params, &world, &out)    tissue and threads at t_n
+//   the constraint springs are built, the soft and thread solvers take out.contacts and fill
+//   their force_n
+//   state.tools[s].force_n = ToolForces(out)[s] minus the reactions of tool-held springs
+//   the clock advances, then UpdateContactEvents(model, state, out, &state.tool_contacts,
+//   &state.events) and the instrument actions
+// CollisionWorld is Workspace (trees, surfaces, work lists): rebuilding it from any State gives
+// the same contacts bit for bit, so it need not be saved. state.tool_contacts (the last step's
+// touching (tool, body) pairs) must be in State: the events of the next step depend on it.
 #include <array>
 #include <cstdint>
 #include <vector>
 
 #include "arthrosim/collision/collision_mesh.h"
+#include "arthrosim/collision/contact_scratch.h"
 #include "arthrosim/collision/instrument_shape.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
@@ -25,34 +27,11 @@
 
 namespace arthrosim::collision {
 
-/// Contact parameters (docs/contact-model.md explains each choice).
-struct CollisionParams {
-  double alarm_distance_mm = 1.0;    ///< gap below which a contact is handed to the solver
-  double contact_distance_mm = 0.1;  ///< gap the penalty keeps (skin); > 0 so touching is visible
-  double max_depth_mm = 1.5;         ///< tissue/thread points deeper than this behind a surface are
-                              ///< considered passed through (sutures, attachments): no contact
-  double sweep_fraction = 0.5;                  ///< tool sweep substep <= this * alarm_distance_mm
-  int max_substeps = 64;                        ///< cap on tool sweep substeps per step
-  double tool_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point
-  double tool_thread_stiffness_n_per_mm = 2.0;  ///< per contact point
-  /// Sharp points (awl) also hold the material they enter and their path's surface crossings
-  /// (docs/contact-model.md "Sharp points"); false only to show what happens without.
-  bool sharp_point_volume_contacts = true;
-  /// Per plane of those contacts (four planes per material point).
-  double tool_volume_stiffness_n_per_mm = 20.0;
-  double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides)
-  double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides)
-  double bone_stiffness_n_per_mm =
-      2.0;  ///< tissue-bone, bone tip-tissue and thread-bone, per point
-  double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the (kinematic) tool, per part
-  /// Tissue-tissue contacts between different soft bodies; false only to show what happens
-  /// without.
-  bool tissue_tissue_contacts = true;
-  /// Salient bone vertices (a spur tip) against soft triangles; false only to show the gap.
-  bool bone_tip_contacts = true;
-};
+/// Contact parameters: the Model's contact options (core/model.h, scenario section `contact:`;
+/// docs/contact-model.md explains each choice). Tests may pass changed copies.
+using CollisionParams = ContactOptions;
 
-/// The parameters of a scenario's `contact:` section (defaults where it is silent).
+/// The parameters of a scenario's `contact:` section (a copy of `contact`).
 CollisionParams ParamsFromModel(const ContactOptions& contact);
 
 /// Bone triangles near each query slot (soft surface vertices, thread nodes and segments): the
@@ -144,6 +123,8 @@ struct CollisionWorld {
   std::vector<BoneEntry> bones;
   std::vector<ThreadEntry> threads;
   std::int64_t rebuilds = 0;  ///< tree (re)builds so far (diagnostics)
+  /// Work lists of Detect (per task, merge, sort): kept so a steady step allocates nothing.
+  DetectScratch scratch;
 };
 
 /// Brings the world up to date with `state`: refits soft-body trees, rebuilds those whose

@@ -124,13 +124,46 @@ struct Join {
   double tolerance_mm = 1e-6;
 };
 
+// ---- Solver, contact and thread-solver options: every numerical setting of the physics and
+// collision stages, in one place with defaults and units (as MuJoCo keeps mjOption in
+// mjModel). Each is a scenario key (sections `solver:`, `contact:`, `thread_solver:`,
+// docs/scenario-format.md); the stages read them from here.
+
+/// Soft-tissue time integrator.
 enum class Integrator : std::uint8_t { kImplicitEuler, kArkode };
 
-/// Solver options: implicit Euler + CG as SOFA's EulerImplicitSolver + CGLinearSolver (|r|/|b|).
+/// How the soft solver's CG applies the system matrix.
+enum class SystemProduct : std::uint8_t {
+  kAssembled,   ///< 3x3 block-sparse matrix assembled once per step (default, faster)
+  kMatrixFree,  ///< element-by-element product R K_e R^T at every CG iteration
+};
+
+/// The soft solver's CG preconditioner.
+enum class Preconditioner : std::uint8_t {
+  kBlockJacobi,   ///< inverse 3x3 diagonal blocks of the current system matrix
+  kRestCholesky,  ///< "warped" anchored factorisation: P^-1 = W Ka^-1 W^T with Ka the sparse
+                  ///< LDLT of the system with the element rotations of the anchor positions
+                  ///< SoftBodyState::x_factor (the rest positions while it is empty), and
+                  ///< W per-node rotations taking the anchor's node rotations to the current
+                  ///< ones (node rotation: polar of the sum of the incident element rotations).
+                  ///< Refactored after a topology/rest change, a new dt or a new anchor; a step
+                  ///< whose CG needs more than SolverOptions::refactor_iterations sets the anchor
+                  ///< to its end positions (kept in State, so a restored run rebuilds the same
+                  ///< factor)
+};
+
+/// Soft-tissue solver options (scenario section `solver:`): implicit Euler + CG as SOFA's
+/// EulerImplicitSolver + CGLinearSolver.
 struct SolverOptions {
   Integrator integrator = Integrator::kImplicitEuler;
-  int cg_max_iterations = 100;
-  double cg_tolerance = 1e-8;  ///< relative residual |r|/|b|
+  int cg_max_iterations = 100;  ///< per solve, >= 1
+  double cg_tolerance = 1e-8;   ///< relative residual |r|/|b|, > 0
+  SystemProduct product = SystemProduct::kAssembled;
+  Preconditioner preconditioner = Preconditioner::kRestCholesky;
+  /// A step needing more CG iterations than this moves the factor anchor (0 = never: the
+  /// preconditioner stays the warped rest factor). 10: with the ~5 ms refactorisation, the
+  /// driven benchmark gives median 2.6 / mean 3.3 ms per step (12: 2.9 / 3.2; 8: 2.5 / 3.8).
+  int refactor_iterations = 10;
 };
 
 /// Contact parameters (scenario section `contact:`, all optional; docs/contact-model.md explains
@@ -146,8 +179,39 @@ struct ContactOptions {
   double tool_volume_stiffness_n_per_mm = 20.0;   ///< sharp point (awl), per plane, N/mm
   double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides), N/mm
   double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides), N/mm
-  double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone and thread-bone, per point, N/mm
+  double bone_stiffness_n_per_mm = 2.0;       ///< tissue-bone, bone tip-tissue, thread-bone, N/mm
   double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the kinematic tool, per part, N/mm
+  /// Sharp points (awl) also hold the material they enter and their path's surface crossings
+  /// (docs/contact-model.md "Sharp points"); false only to show what happens without.
+  bool sharp_point_volume_contacts = true;
+  /// Tissue-tissue contacts between different soft bodies; false only to show what happens
+  /// without.
+  bool tissue_tissue_contacts = true;
+  /// Salient bone vertices (a spur tip) against soft triangles; false only to show the gap.
+  bool bone_tip_contacts = true;
+};
+
+/// Suture thread solver options (scenario section `thread_solver:`).
+struct ThreadSolverOptions {
+  double contact_stiffness_n_per_mm = 100.0;  ///< segment-segment penalty, N/mm
+  /// Segment pairs within (1 + this) contact distances at the start of the step get a contact.
+  double contact_margin_factor = 1.0;
+  int max_newton_iterations = 8;  ///< per solve
+  int max_active_set_passes = 4;  ///< contact active-set re-solves per Newton iteration
+  /// Strain limit applied after the solve (a braided suture fails at ~5 % strain).
+  double max_strain = 0.01;
+  int strain_limit_passes = 100;      ///< passes of the strain-limit projection (tridiagonal)
+  double newton_tolerance_mm = 1e-7;  ///< stop when the largest Newton update is below this, mm
+  int max_ccd_rounds = 3;             ///< re-solves after continuous detection
+  int ccd_samples = 8;                ///< distance samples per step in the swept test
+  /// A swept distance below this * contact distance adds a contact.
+  double ccd_close_fraction = 0.5;
+  double crossing_tolerance_mm = 1e-4;  ///< distance at a coplanarity root counted as crossing
+  /// Axial stiffness in compression / EA (a braid buckles).
+  double compression_stiffness_fraction = 0.01;
+  double speed_barrier_stiffness_n_per_mm = 100.0;  ///< penalty on moving beyond vmax dt, N/mm
+  /// Same-thread segment pairs closer than this * diameter along the rest arc are skipped.
+  double exclusion_factor = 1.5;
 };
 
 /// Run options.
@@ -171,6 +235,7 @@ struct Model {
   SolverOptions solver;
   ContactOptions contact;
   OperationOptions operations;  ///< scenario `operations:`
+  ThreadSolverOptions thread_solver;
   std::vector<Material> materials;
   std::vector<SoftBodyModel> soft_bodies;
   std::vector<BoneModel> bones;

@@ -4,12 +4,13 @@
 // (ARKStepSetLinear) whose linear system is solved by a custom MATRIX_EMBEDDED SUNLinearSolver
 // wrapping the same CG, forces and stiffness as the built-in implicit Euler. ODE state
 // y = [x; v] over the SoftSystem slots. Selected by SolverOptions::integrator == kArkode.
+// It drives the system only through the SoftStages interface (soft_stages.h).
 #include <cstdint>
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 #include "arthrosim/physics/contact.h"
-#include "arthrosim/physics/soft_system.h"
+#include "arthrosim/physics/soft_stages.h"
 
 namespace arthrosim::physics {
 
@@ -22,7 +23,8 @@ class ArkodeIntegrator {
 
   /// One step of model.options.dt_s for all soft bodies of `system` (already built).
   /// The integrator is re-initialised every step, so the result depends on State only.
-  SoftStepStats Step(SoftSystem* system, const Model& model, ContactSet* contacts,
+  /// Throws std::runtime_error if SUNDIALS reports a failure.
+  SoftStepStats Step(SoftStages* system, const Model& model, ContactSet* contacts,
                      SpringSet* springs, State* state);
 
   struct Impl;  // SUNDIALS objects and callback context (public for the C callbacks)

@@ -64,7 +64,7 @@ struct SoftBenchOptions {
   /// every fixed node around a circle of this radius (mm) in the y-z plane; 0 = idle scene.
   double drive_radius_mm = 3.0;
   double drive_period_s = 1.0;
-  int refactor_iterations = -1;  ///< SoftSystem::set_refactor_iterations; -1 = its default
+  int refactor_iterations = -1;  ///< SolverOptions::refactor_iterations; -1 = the model's
   SystemProduct product = SystemProduct::kAssembled;  ///< how CG applies the system matrix
 };
 

@@ -30,50 +30,15 @@
 #include "arthrosim/physics/cg_solver.h"
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/corotational_fem.h"
+#include "arthrosim/physics/soft_stages.h"
 
 namespace arthrosim::physics {
 
 class ArkodeIntegrator;
 
-/// How the CG applies the system matrix.
-enum class SystemProduct : std::uint8_t {
-  kAssembled,   ///< 3x3 block-sparse matrix assembled once per step (default, faster)
-  kMatrixFree,  ///< element-by-element product R K_e R^T at every CG iteration
-};
-
-/// CG preconditioner.
-enum class Preconditioner : std::uint8_t {
-  kBlockJacobi,   ///< inverse 3x3 diagonal blocks of the current system matrix
-  kRestCholesky,  ///< "warped" anchored factorisation: P^-1 = W Ka^-1 W^T with Ka the sparse
-                  ///< LDLT of the system with the element rotations of the anchor positions
-                  ///< SoftBodyState::x_factor (the rest positions while it is empty), and
-                  ///< W per-node rotations taking the anchor's node rotations to the current
-                  ///< ones (node rotation: polar of the sum of the incident element rotations).
-                  ///< Refactored after a topology/rest change, a new dt or a new anchor; a step
-                  ///< whose CG needs more than refactor_iterations() sets the anchor to its
-                  ///< end positions (kept in State, so a restored run rebuilds the same factor)
-};
-
-/// Timings (CPU time of the process, ms: all threads, steady on a shared machine) and solver
-/// figures of one Step.
-struct SoftStepStats {
-  double rotations_ms = 0;  ///< polar rotations + elastic forces
-  double assembly_ms = 0;   ///< matrix, preconditioner (incl. any refactorisation), contacts, rhs
-  double factor_ms = 0;     ///< part of assembly_ms spent (re)analysing/factoring, 0 if reused
-  double solve_ms = 0;      ///< CG
-  double update_ms = 0;     ///< integration and write-back to State
-  double total_ms = 0;
-  int cg_iterations = 0;
-  double cg_relative_residual = 0;   ///< final |b - A dv| / max(|b|, h |W|), W the weight
-  bool refactored = false;           ///< the preconditioner was factored in this step
-  bool anchor_moved = false;         ///< this step set x_factor (refactor at the next step)
-  std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
-  std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
-  std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
-  /// Extra solves for contacts that were apart at the start of the step and crossed within it
-  /// (cg_iterations counts all solves).
-  int contact_resolves = 0;
-};
+// The product and preconditioner choices are Model options (core/model.h, SolverOptions).
+using arthrosim::Preconditioner;
+using arthrosim::SystemProduct;
 
 /// Energies of the soft bodies, micro-joules (mN mm = kg mm^2/s^2).
 struct SoftEnergies {
@@ -89,14 +54,15 @@ struct NodeRef {
   std::int32_t node = -1;
 };
 
-class SoftSystem {
+class SoftSystem final : public SoftStages {
  public:
   SoftSystem();
   ~SoftSystem();
   SoftSystem(SoftSystem&&) noexcept;
   SoftSystem& operator=(SoftSystem&&) noexcept;
 
-  /// Builds everything from (model, state): joins, slots, element rest data, masses, pattern.
+  /// Builds everything from (model, state): joins, slots, element rest data, masses, pattern;
+  /// takes the product, preconditioner and refactor_iterations from model.solver.
   void Build(const Model& model, const State& state);
 
   /// Advances every soft body by one step of model.options.dt_s with the integrator of
@@ -132,11 +98,7 @@ class SoftSystem {
 
   // ---- Queries ----
 
-  void set_product(SystemProduct product) { product_ = product; }
-  void set_preconditioner(Preconditioner p) { preconditioner_ = p; }
-  /// A step needing more CG iterations than this moves the factor anchor (0 = never: the
-  /// preconditioner stays the warped rest factor unless x_factor is set from outside).
-  void set_refactor_iterations(int n) { refactor_iterations_ = n; }
+  /// The settings Build took from model.solver (product, preconditioner, refactor_iterations).
   int refactor_iterations() const { return refactor_iterations_; }
   Preconditioner preconditioner() const { return preconditioner_; }
   SystemProduct product() const { return product_; }
@@ -156,10 +118,24 @@ class SoftSystem {
   Points ElasticForces(const Model& model, const State& state, int body) const;
   std::int32_t slot_count() const { return slots_; }
 
- private:
-  friend class ArkodeIntegrator;
-  friend struct ArkodeBridge;
+  // ---- Stages of an external integrator (SoftStages; see soft_stages.h) ----
 
+  std::int32_t stage_slots() const override { return slots_; }
+  void BeginExternalStep(const State& state, Eigen::Ref<Eigen::VectorXd> x_mm,
+                         Eigen::Ref<Eigen::VectorXd> v_mm_s) override;
+  void EvaluateRates(const Model& model, const Eigen::VectorXd& x_mm, const Eigen::VectorXd& v_mm_s,
+                     ContactSet* contacts, SpringSet* springs, Eigen::Ref<Eigen::VectorXd> dx,
+                     Eigen::Ref<Eigen::VectorXd> dv) override;
+  CgResult SolveNewtonSystem(const Model& model, double gamma_s, const Eigen::VectorXd& xz_mm,
+                             const Eigen::VectorXd& bx, const Eigen::VectorXd& bv,
+                             ContactSet* contacts, SpringSet* springs,
+                             Eigen::Ref<Eigen::VectorXd> ox,
+                             Eigen::Ref<Eigen::VectorXd> ov) override;
+  SoftStepStats FinishExternalStep(const Model& model, const Eigen::VectorXd& x_mm,
+                                   const Eigen::VectorXd& v_mm_s, const Eigen::VectorXd& v_old_mm_s,
+                                   ContactSet* contacts, SpringSet* springs, State* state) override;
+
+ private:
   struct ElemRef {
     std::int32_t body;
     std::int32_t tet;
@@ -192,13 +168,18 @@ class SoftSystem {
 
   // Layout and bookkeeping.
   void Layout(const Model& model, const State& state);
+  void LayoutBodies(const Model& model, const State& state);
+  void LayoutSlots();
+  void MatchJoins(const Model& model, const State& state);
+  void MarkFixedNodes(const Model& model);
+  void ResetStepVectors();
   void AddElement(int body, std::int32_t tet, const SoftBodyState& sb);
   void RemoveElement(int body, std::int32_t tet);
   void RecomputeSlot(std::int32_t slot);
   void RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb);
   bool NeedsRebuild(int body, std::int32_t new_nodes) const;
 
-  // Step stages (shared with the ARKODE integrator).
+  // Step stages (the built-in implicit Euler and the external stages above use them).
   void Gather(const State& state);
   void ComputeRotationsAndForces(const Eigen::VectorXd& x);
   void AddGravity(const Model& model);
@@ -261,9 +242,7 @@ class SoftSystem {
   bool anchor_dirty_ = true;   // anchor positions changed: refactor
   bool refactored_ = false;
   double factor_ms_ = 0;
-  // 10: with the ~5 ms refactorisation, bench_full driven gives median 2.6 / mean 3.3 ms
-  // (12: 2.9 / 3.2; 8: 2.5 / 3.8).
-  int refactor_iterations_ = 10;
+  int refactor_iterations_ = 10;  // from SolverOptions::refactor_iterations
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 

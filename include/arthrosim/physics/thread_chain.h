@@ -53,26 +53,9 @@
 
 namespace arthrosim::physics {
 
-/// Solver settings for threads that the Model does not carry (defaults used by the sim).
-struct ThreadSolverParams {
-  double contact_stiffness_n_per_mm = 100.0;  ///< segment-segment penalty, N/mm
-  double contact_margin_factor =
-      1.0;                        ///< pairs within (1 + f) * contact distance at x0 get a contact
-  int max_newton_iterations = 8;  ///< per solve
-  int max_active_set_passes = 4;  ///< contact active-set re-solves per Newton iteration
-  double max_strain = 0.01;  ///< strain limit applied after the solve (FiberWire fails at ~5 %)
-  int strain_limit_passes = 100;      ///< passes of the strain-limit projection (tridiagonal)
-  double newton_tolerance_mm = 1e-7;  ///< stop when the largest Newton update is below this
-  int max_ccd_rounds = 3;             ///< re-solves after continuous detection
-  int ccd_samples = 8;                ///< distance samples per step in the swept test
-  double ccd_close_fraction = 0.5;  ///< swept distance below this * contact distance adds a contact
-  double crossing_tolerance_mm = 1e-4;  ///< distance at a coplanarity root counted as crossing
-  double compression_stiffness_fraction =
-      0.01;  ///< axial stiffness in compression / EA (a braid buckles)
-  double speed_barrier_stiffness_n_per_mm = 100.0;  ///< penalty on moving more than vmax dt, N/mm
-  double exclusion_factor =
-      1.5;  ///< same-thread pairs closer than this * d along the rest arc are skipped
-};
+/// Thread solver settings: the Model's thread-solver options (core/model.h, scenario section
+/// `thread_solver:`). Tests may set changed copies in ThreadWorkspace::params.
+using ThreadSolverParams = ThreadSolverOptions;
 
 /// Immutable per-thread data derived from the ThreadModel (lives in the sim Workspace).
 struct ThreadRest {
@@ -106,7 +89,8 @@ struct ThreadWorkspace {
 /// (edges, when given, must be exactly (i, i+1)) or a segment has zero length.
 ThreadRest MakeThreadRest(const ThreadModel& model);
 
-/// Fills ws->rest for every thread of the model (keeps ws->params).
+/// Fills ws->rest for every thread of the model (keeps ws->params; the sim sets them from
+/// Model::thread_solver).
 void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspace* ws);
 
 /// Advances every thread by dt_s (s) under gravity (mm/s^2), the PointContacts and PointSprings

@@ -1,6 +1,6 @@
 #pragma once
-// Per-step scratch of the thread solver (internal to thread_chain.cpp; public only so that the
-// ThreadWorkspace can own it). Every buffer keeps its capacity between steps, so a step that
+// Per-step scratch of the thread solver (internal to the thread solver files; public only so that
+// the ThreadWorkspace can own it). Every buffer keeps its capacity between steps, so a step that
 // needs no more contacts than an earlier one allocates nothing.
 #include <array>
 #include <cstdint>
