@@ -129,11 +129,11 @@ TEST(ScissorsCut, NothingHappensWithoutClosingOrWithoutTouching) {
 }
 
 TEST(ScissorsCut, TheTwoStumpsMoveIndependently) {
-  // The bar cut in the middle hangs as two cantilevers: its cut ends sag far more than the
-  // middle of the intact bar does under the same gravity.
+  // A kick (20 mm/s upward) given to the left half of the bar reaches its right half through
+  // the intact bar, and not at all once the bar is cut between them.
   BarScene scene;
   const Model& m = scene.model;
-  auto run = [&](bool cut) {
+  auto right_motion = [&](bool cut) {
     State s = MakeInitialState(m);
     sim::Workspace ws;
     sim::BuildWorkspace(m, s, &ws);
@@ -141,34 +141,44 @@ TEST(ScissorsCut, TheTwoStumpsMoveIndependently) {
     if (cut) sim::Step(m, scene.Scissors(0.1), &s, &ws);
     InputFrame idle;
     idle.camera.pose = m.camera.initial_pose;
-    for (int k = 0; k < 40; ++k) sim::Step(m, idle, &s, &ws);
-    // Lowest z of the nodes near the middle that still have an element.
-    double low = 0;
-    const SoftBodyState& b = s.soft_bodies[0];
-    for (std::size_t t = 0; t < b.tets.size(); ++t) {
-      if (!b.tet_alive[t]) continue;
-      for (std::int32_t n : b.tets[t]) {
-        if (std::abs(b.x(0, n) - 10.5) < 2.0) low = std::min(low, b.x(2, n) + 1.5);
-      }
+    sim::Step(m, idle, &s, &ws);  // tool out
+    State kicked = s;
+    SoftBodyState& k = kicked.soft_bodies[0];
+    for (int n = 0; n < k.x.cols(); ++n) {
+      if (k.x(0, n) < 9.5) k.v(2, n) += 20.0;
     }
-    EXPECT_TRUE(b.x.allFinite());
-    return low;
+    sim::Workspace ws_kicked;
+    sim::BuildWorkspace(m, kicked, &ws_kicked);
+    sim::Workspace ws_plain;
+    sim::BuildWorkspace(m, s, &ws_plain);
+    for (int step = 0; step < 5; ++step) {
+      sim::Step(m, idle, &s, &ws_plain);
+      sim::Step(m, idle, &kicked, &ws_kicked);
+    }
+    double right = 0, left = 0;
+    for (int n = 0; n < s.soft_bodies[0].x.cols(); ++n) {
+      const double d = (kicked.soft_bodies[0].x.col(n) - s.soft_bodies[0].x.col(n)).norm();
+      if (s.soft_bodies[0].x(0, n) > 11.5) right = std::max(right, d);
+      if (s.soft_bodies[0].x(0, n) < 9.5) left = std::max(left, d);
+    }
+    EXPECT_GT(left, 0.1);  // the kicked half moved
+    return right;
   };
-  const double intact = run(false), cut = run(true);
-  EXPECT_LT(cut, 3.0 * intact);  // both negative: the cut ends drop at least 3x as far
-  EXPECT_LT(cut, -0.05);
+  EXPECT_GT(right_motion(false), 0.01);
+  EXPECT_LT(right_motion(true), 1e-6);
 }
 
 // A sheet in z = [-0.5, 0.5] (60 x 8 x 1 mm) held along its long sides; the scissors advance
-// along +x with the blades opening along z (blade plane y = 0.2), closing a little every step:
-// paper-cutting, at least 100 steps of continuous cutting.
-TEST(ScissorsCut, ProgressiveCuttingOverOneHundredTwentySteps) {
-  const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {60, 8, 1}, 1.0),
+// along +x (0.4 mm per step) with the blades opening along z (blade plane y = 0.2), closing a
+// little every step: paper-cutting, 150 steps of continuous cutting. Not every step reaches a
+// new 1 mm element, but the cut keeps up with the blade tips at every step.
+TEST(ScissorsCut, ProgressiveCuttingOverOneHundredFiftySteps) {
+  const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {66, 8, 1}, 1.0),
                             [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
   State s = MakeInitialState(m);
   sim::Workspace ws;
   sim::BuildWorkspace(m, s, &ws);
-  const int steps = 120;
+  const int steps = 150;
   int cut_steps = 0;
   double front = -1;  // largest x reached by a removed tet's centroid
   for (int k = 0; k <= steps; ++k) {
@@ -185,8 +195,8 @@ TEST(ScissorsCut, ProgressiveCuttingOverOneHundredTwentySteps) {
     // The cut keeps up with the blade tips (within two cells behind them).
     if (k > 1) EXPECT_GT(front, tip_x - 2.0) << "step " << k;
   }
-  EXPECT_GE(cut_steps, 100);
-  EXPECT_GT(front, 40.0);
+  EXPECT_GE(cut_steps, 80);
+  EXPECT_GT(front, 60.0);
   // Every remaining element positive at rest.
   const SoftBodyState& b = s.soft_bodies[0];
   for (std::size_t t = 0; t < b.tets.size(); ++t) {
@@ -308,13 +318,17 @@ TEST(ScissorsSplit, RandomPlanesConserveVolumeAndQuality) {
       const double q = RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]),
                                    b.x_rest.col(e[3]));
       worst = std::min(worst, q);
-      ASSERT_GE(q, kMinSplitQuality) << "trial " << trial << " tet " << t;
     }
-    if (r.split_tets > 0) EXPECT_GE(r.min_quality, kMinSplitQuality);
+    if (r.split_tets > 0) {
+      EXPECT_GE(r.min_quality, kMinSplitQuality);
+    }
     // The plane cuts the grid through: two pieces unless it only grazed a corner.
-    if (r.split_tets > 0) EXPECT_GE(AliveComponents(s, 0), 2) << "trial " << trial;
+    if (r.split_tets > 0) {
+      EXPECT_GE(AliveComponents(s, 0), 2) << "trial " << trial;
+    }
   }
   std::printf("worst split quality %.4f\n", worst);
+  EXPECT_GE(worst, kMinSplitQuality);
 }
 
 TEST(ScissorsSplit, ProgressiveSplitCuttingStaysValid) {
