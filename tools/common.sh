@@ -9,7 +9,7 @@ ARTHROSIM_PACKAGES=(
   build-essential cmake ninja-build pkg-config ccache
   libeigen3-dev libsundials-dev libfcl-dev libosmesa6-dev libhdf5-dev hdf5-tools
   libyaml-cpp-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libopenigtlink-dev libstb-dev fonts-dejavu-core ffmpeg
+  libopenigtlink-dev libstb-dev fonts-dejavu-core ffmpeg chromium
   python3 python3-h5py python3-numpy python3-yaml gmsh python3-gmsh
 )
 

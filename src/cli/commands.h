@@ -16,7 +16,9 @@ void AddInfoCommand(CLI::App* app, int* exit_code);
 void AddBenchCommand(CLI::App* app, int* exit_code);
 void AddRenderCommand(CLI::App* app, int* exit_code);
 void AddServeCommand(CLI::App* app, int* exit_code);
-/// score and compare: reserved names until the scoring issue lands.
-void AddReservedCommands(CLI::App* app, int* exit_code);
+/// score: a run against a procedure plan (exit 0 pass, 1 fail, 2 bad input).
+void AddScoreCommand(CLI::App* app, int* exit_code);
+/// compare: a run against a golden file (exit 0 equal, 1 regression, 2 bad input).
+void AddCompareCommand(CLI::App* app, int* exit_code);
 
 }  // namespace arthrosim::cli

@@ -17,7 +17,8 @@ int main(int argc, char** argv) {
   AddServeCommand(&app, &exit_code);
   AddRenderCommand(&app, &exit_code);
   AddBenchCommand(&app, &exit_code);
-  AddReservedCommands(&app, &exit_code);
+  AddScoreCommand(&app, &exit_code);
+  AddCompareCommand(&app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

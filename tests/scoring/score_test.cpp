@@ -1,0 +1,254 @@
+// Scoring on synthetic runs: the clean run passes every step and scores >= 90; each injected
+// error is flagged by its metric or step, for the reason it should.
+#include <gtest/gtest.h>
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "arthrosim/scoring/report_html.h"
+#include "arthrosim/scoring/score.h"
+#include "synthetic_run.h"
+
+namespace arthrosim::scoring {
+namespace {
+
+using testing::SynthSpec;
+
+struct Scored {
+  RunData run;
+  ScoreReport report;
+};
+
+Scored ScoreSynth(const std::string& name, const SynthSpec& spec,
+                  const std::vector<const RunData*>& refs = {}) {
+  const std::string path = testing::TestDir(name) + "/run.h5";
+  testing::WriteSynthRun(path, spec);
+  const Model model = testing::MakeSynthModel();
+  const Plan plan = LoadPlanFromText(testing::SynthPlanText(), "synth.yaml", &model);
+  Scored s{ReadRunData(path, model), {}};
+  s.report = Evaluate(plan, s.run, refs);
+  return s;
+}
+
+const Metric& Find(const ScoreReport& r, const std::string& id) {
+  for (const Metric& m : r.metrics)
+    if (m.id == id) return m;
+  throw std::runtime_error("no metric " + id);
+}
+
+const StepResult& Step(const ScoreReport& r, const std::string& id) {
+  for (const StepResult& s : r.steps)
+    if (s.id == id) return s;
+  throw std::runtime_error("no step " + id);
+}
+
+bool HasViolation(const ScoreReport& r, const std::string& kind) {
+  for (const Violation& v : r.violations)
+    if (v.kind == kind) return true;
+  return false;
+}
+
+TEST(Score, CleanRunPassesEveryStep) {
+  const Scored s = ScoreSynth("clean", {});
+  const ScoreReport& r = s.report;
+  for (const StepResult& step : r.steps) EXPECT_TRUE(step.passed) << step.id << ": " << step.reason;
+  for (const Metric& m : r.metrics) EXPECT_TRUE(m.pass) << m.id << " = " << m.value;
+  EXPECT_TRUE(r.violations.empty());
+  EXPECT_TRUE(r.critical_errors.empty());
+  EXPECT_GE(r.total, 90.0);
+  EXPECT_TRUE(r.passed);
+  // Times from the formulas: burr inserted at frame 10, 1 mm^3 removed at frame 30.
+  EXPECT_NEAR(Step(r, "burr").start_s, 0.2, 1e-12);
+  EXPECT_NEAR(Step(r, "burr").end_s, 0.6, 1e-12);
+  EXPECT_NEAR(Step(r, "hole").duration_s, 0.4, 1e-12);
+  EXPECT_NEAR(Find(r, "quality.hole.hole.angle_deg").value, 45.0, 1e-9);
+  EXPECT_NEAR(Find(r, "quality.hole.hole.position_error").value, 0.0, 1e-12);
+  EXPECT_NEAR(Find(r, "quality.reduce.gap").value, std::sqrt(3.0), 1e-12);
+  // Awl: 10 mm at 50 mm/s then held: path 10 mm, one movement, idle 20 of 30 intervals.
+  EXPECT_NEAR(Find(r, "motion.awl.path_length").value, 10.0, 1e-12);
+  EXPECT_EQ(Find(r, "motion.awl.movements").value, 1.0);
+  EXPECT_NEAR(Find(r, "motion.awl.idle_time").value, 0.4, 1e-12);
+  EXPECT_NEAR(Find(r, "motion.burr.path_length").value, 20.0, 1e-9);
+  EXPECT_NEAR(Find(r, "camera.tip_in_view").value, 1.0, 1e-12);
+  EXPECT_LT(Find(r, "camera.horizon_deviation").value, 1e-6);
+}
+
+TEST(Score, AnchorAngleOutsideBandFailsTheStep) {
+  SynthSpec spec;
+  spec.hole_angle_deg = 70;
+  const ScoreReport r = ScoreSynth("angle", spec).report;
+  EXPECT_FALSE(Step(r, "hole").passed);
+  EXPECT_NE(Step(r, "hole").reason.find("angle_deg = 70, expected 35 to 55"), std::string::npos)
+      << Step(r, "hole").reason;
+  EXPECT_FALSE(Find(r, "quality.hole.hole.angle_deg").pass);
+  EXPECT_TRUE(Find(r, "quality.hole.hole.depth_mm").pass);
+  EXPECT_FALSE(r.passed);
+}
+
+TEST(Score, HoleAwayFromTheSiteFailsPositionError) {
+  SynthSpec spec;
+  spec.hole_offset_mm = 5;
+  const ScoreReport r = ScoreSynth("offset", spec).report;
+  EXPECT_FALSE(Step(r, "hole").completed);
+  EXPECT_NEAR(Find(r, "quality.hole.hole.position_error").value, 5.0, 1e-12);
+  EXPECT_FALSE(Find(r, "quality.hole.hole.position_error").pass);
+  EXPECT_NE(Step(r, "hole").reason.find("5.0 mm from site"), std::string::npos);
+}
+
+TEST(Score, ActionBeforeItsPrerequisiteIsAnOrderViolation) {
+  SynthSpec spec;
+  spec.burr_frame = -1;  // the burr never removes: the hole comes before the burr step is done
+  const ScoreReport r = ScoreSynth("order", spec).report;
+  EXPECT_TRUE(HasViolation(r, "order"));
+  EXPECT_FALSE(Step(r, "burr").completed);
+  EXPECT_FALSE(Step(r, "hole").passed);
+  EXPECT_NE(Step(r, "hole").reason.find("before 'Burr the target' was done"), std::string::npos)
+      << Step(r, "hole").reason;
+}
+
+TEST(Score, ActionBeforeALaterCompletedPrerequisiteIsAnOrderViolation) {
+  SynthSpec spec;
+  spec.burr_late = true;  // the burr step completes at 1.8 s, the hole is punched at 1.4 s
+  const ScoreReport r = ScoreSynth("order_late", spec).report;
+  EXPECT_TRUE(Step(r, "burr").completed);
+  EXPECT_TRUE(HasViolation(r, "order"));
+  EXPECT_FALSE(Step(r, "hole").passed);
+  EXPECT_NE(Step(r, "hole").reason.find("acted at 1.40 s"), std::string::npos)
+      << Step(r, "hole").reason;
+}
+
+TEST(Score, WrongInstrumentIsFlagged) {
+  SynthSpec spec;
+  spec.hole_by_grasper = true;
+  const ScoreReport r = ScoreSynth("wrong", spec).report;
+  EXPECT_TRUE(HasViolation(r, "wrong_instrument"));
+  EXPECT_EQ(Find(r, "plan.wrong_instrument_actions").value, 1.0);
+  EXPECT_FALSE(Find(r, "plan.wrong_instrument_actions").pass);
+  EXPECT_FALSE(Step(r, "hole").completed);
+}
+
+TEST(Score, ForceOnAProtectedStructureIsCritical) {
+  SynthSpec spec;
+  spec.muscle_touch_force_n = 5;
+  const ScoreReport r = ScoreSynth("protected", spec).report;
+  EXPECT_NEAR(Find(r, "safety.belly.contact_time").value, 0.22, 1e-9);  // frames 85..95
+  EXPECT_EQ(Find(r, "safety.belly.peak_force").value, 5.0);
+  EXPECT_FALSE(Find(r, "safety.belly.peak_force").pass);
+  EXPECT_FALSE(Find(r, "safety.belly.time_over_force").pass);
+  ASSERT_FALSE(r.critical_errors.empty());
+  EXPECT_NE(r.critical_errors[0].find("force above 2 N on belly"), std::string::npos);
+  EXPECT_FALSE(r.passed);  // regardless of the total
+  for (const StepResult& step : r.steps) EXPECT_TRUE(step.passed) << step.id;
+}
+
+TEST(Score, DamageOnAProtectedStructureIsCritical) {
+  SynthSpec spec;
+  spec.burr_on_muscle = true;
+  const ScoreReport r = ScoreSynth("damage", spec).report;
+  EXPECT_EQ(Find(r, "safety.belly.damage_events").value, 1.0);
+  EXPECT_TRUE(HasViolation(r, "damage"));
+  EXPECT_FALSE(r.passed);
+}
+
+TEST(Score, RemovalOutsideTheTargetIsCounted) {
+  SynthSpec spec;
+  spec.burr_outside_target = true;
+  const ScoreReport r = ScoreSynth("outside", spec).report;
+  EXPECT_EQ(Find(r, "safety.volume_outside_target").value, 1.0);
+  EXPECT_FALSE(Find(r, "safety.volume_outside_target").pass);
+}
+
+TEST(Score, OverTheTimeBudgetFailsTheStep) {
+  SynthSpec spec;
+  spec.hole_frame = 79;  // 0.58 s after the awl went in at frame 50
+  const ScoreReport r = ScoreSynth("slow", spec).report;
+  EXPECT_TRUE(Step(r, "hole").completed);
+  EXPECT_FALSE(Step(r, "hole").passed);
+  EXPECT_NE(Step(r, "hole").reason.find("took 0.6 s, the budget is 0.5 s"), std::string::npos)
+      << Step(r, "hole").reason;
+  EXPECT_FALSE(Find(r, "step.hole.duration").pass);
+  EXPECT_FALSE(r.passed);
+}
+
+TEST(Score, CameraLookingAwayLosesTheView) {
+  SynthSpec spec;
+  spec.camera_away = true;
+  const ScoreReport r = ScoreSynth("away", spec).report;
+  EXPECT_FALSE(Step(r, "look").completed);
+  EXPECT_EQ(Find(r, "camera.tip_in_view").value, 0.0);
+  EXPECT_FALSE(Find(r, "camera.tip_in_view").pass);
+}
+
+TEST(Score, RolledCameraHeadDeviatesFromTheHorizon) {
+  SynthSpec spec;
+  spec.head_roll_rad = std::numbers::pi / 2;
+  const ScoreReport r = ScoreSynth("horizon", spec).report;
+  EXPECT_NEAR(Find(r, "camera.horizon_deviation").value, 90.0, 1e-6);
+  EXPECT_FALSE(Find(r, "camera.horizon_deviation").pass);
+}
+
+TEST(Score, IdleInstrumentIsFlagged) {
+  SynthSpec spec;
+  spec.awl_idle = true;
+  const ScoreReport r = ScoreSynth("idle", spec).report;
+  EXPECT_EQ(Find(r, "motion.awl.idle_share").value, 1.0);
+  EXPECT_FALSE(Find(r, "motion.awl.idle_share").pass);
+}
+
+TEST(Score, EconomyAndZScoresAgainstAReference) {
+  const Scored expert = ScoreSynth("expert", {});
+  SynthSpec spec;
+  spec.burr_zigzag = true;
+  const ScoreReport r = ScoreSynth("zigzag", spec, {&expert.run}).report;
+  const Metric& economy = Find(r, "motion.burr.economy");
+  EXPECT_GT(economy.value, 2.0);
+  EXPECT_FALSE(economy.pass);
+  EXPECT_NEAR(Find(r, "motion.awl.economy").value, 1.0, 1e-12);
+  EXPECT_TRUE(Find(r, "motion.awl.economy").pass);
+  const Metric& path = Find(r, "motion.burr.path_length");
+  ASSERT_TRUE(path.z.has_value());
+  EXPECT_NEAR(*path.reference_mean, 20.0, 1e-9);
+  EXPECT_NEAR(*path.z, (path.value - 20.0) / 2.0, 1e-9);  // sd floored at 10 % of the mean
+  EXPECT_EQ(r.references, 1);
+}
+
+TEST(Score, JsonIsByteIdenticalAndXapiScaled) {
+  const Scored a = ScoreSynth("json_a", {});
+  const Scored b = ScoreSynth("json_b", {});
+  const std::string ja = ToJson(a.report), jb = ToJson(b.report);
+  EXPECT_EQ(ja, jb);
+  EXPECT_NE(ja.find("\"schema_version\": 1"), std::string::npos);
+  EXPECT_NE(ja.find("\"id\": \"quality.hole.hole.angle_deg\""), std::string::npos);
+  const std::string x = ToXapi(a.report);
+  EXPECT_NE(x.find("\"scaled\": " + fmt::format("{}", a.report.total / 100)), std::string::npos);
+  EXPECT_NE(x.find("\"duration\": \"PT1.98S\""), std::string::npos) << x;
+  EXPECT_EQ(IsoDuration(3725.5), "PT1H2M5.50S");
+}
+
+TEST(Score, HtmlReportHasEveryPart) {
+  const Scored s = ScoreSynth("html", {});
+  const Model model = testing::MakeSynthModel();
+  const Plan plan = LoadPlanFromText(testing::SynthPlanText(), "synth.yaml", &model);
+  HtmlOptions o;
+  o.thumbnails = false;
+  const std::string html = ReportHtml(plan, s.run, s.report, o);
+  for (const char* part :
+       {"class='timeline'", "class='force'", "top view", "side view", "Punch the hole", "PASS"})
+    EXPECT_NE(html.find(part), std::string::npos) << part;
+  // No network resource: the only URLs are the SVG namespace.
+  auto count = [&](const std::string& what) {
+    std::size_t n = 0;
+    for (std::size_t at = html.find(what); at != std::string::npos; at = html.find(what, at + 1))
+      ++n;
+    return n;
+  };
+  EXPECT_EQ(count("http"), count("http://www.w3.org/2000/svg"));
+  EXPECT_GT(count("<svg"), 3u);
+  EXPECT_EQ(Base64("hello"), "aGVsbG8=");
+  EXPECT_EQ(Base64("hi!"), "aGkh");
+}
+
+}  // namespace
+}  // namespace arthrosim::scoring
