@@ -55,6 +55,11 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
   }
   SoftBodyState& sb = state->soft_bodies[static_cast<std::size_t>(body)];
   auto dist = [&](std::int32_t n) { return normal.dot(Vec3(sb.x.col(n)) - point); };
+  // Nodes made by earlier splits lie on an earlier cut surface: an edge from one is never cut
+  // again and they are never duplicated again (a later cut passes through them), so cutting
+  // near an existing cut does not refine it step after step.
+  const auto first_made =
+      static_cast<std::int32_t>(model.soft_bodies[static_cast<std::size_t>(body)].rest_mesh.nodes.cols());
   // 1. Cut edges of the crossed tets: endpoints strictly on opposite sides and the crossing
   // farther than snap_fraction of the edge from both ends (nearer: the cut passes through the
   // node, which is duplicated below instead of making a sliver).
@@ -64,6 +69,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     for (const auto& k : kEdges) {
       std::int32_t a = e[k[0]], b = e[k[1]];
       if (a > b) std::swap(a, b);
+      if (b >= first_made) continue;
       const double da = dist(a), db = dist(b);
       if (!((da < 0 && db > 0) || (da > 0 && db < 0))) continue;
       const double u = da / (da - db);
@@ -162,7 +168,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     std::uint8_t sides = 0;
     std::size_t j = i;
     for (; j < uses.size() && uses[j].first == uses[i].first; ++j) sides |= uses[j].second;
-    if (sides == 3) {
+    if (sides == 3 && uses[i].first < first_made) {
       const std::int64_t v = uses[i].first;
       copies.emplace_back(v, n0 + static_cast<std::int32_t>(parents.size()));
       if (v < 0) {
