@@ -24,7 +24,8 @@ void ReadScissors(const YamlSection& ops, ScissorsOptions* o) {
   if (mode == "remove") {
     o->mode = CutMode::kRemove;
   } else if (mode == "split") {
-    o->mode = CutMode::kSplit;
+    s.reader().Fail(s.Get("mode"), s.Field("mode"),
+                    "split mode is not available yet (docs/operations.md); use remove");
   } else {
     s.reader().Fail(s.Get("mode"), s.Field("mode"), "expected remove or split, got '" + mode + "'");
   }
