@@ -275,6 +275,7 @@ struct SweepResult {
   int max_cg_iterations = 0;
   int refactors = 0;
   double max_tissue_displacement_mm = 0;
+  int proxy_apart_steps = 0;  ///< steps ending with the proxy away from its handle
 };
 SweepResult Sweep(const Model& m, int steps, bool measure = true) {
   input::SourceOptions options;
@@ -291,6 +292,7 @@ SweepResult Sweep(const Model& m, int steps, bool measure = true) {
     r.Step(f);
     source->Feedback(Feedback(r.state));
     ++out.steps;
+    out.proxy_apart_steps += r.state.tools[0].pose == r.state.tools[0].handle_pose ? 0 : 1;
     if (!measure) continue;
     out.min_tool_clearance_mm =
         std::min(out.min_tool_clearance_mm, ExactClearance(r.model, r.state, 0));
@@ -331,13 +333,13 @@ TEST(ToolProxyTest, AbusiveSweepWithoutTheProxyEntersBone) {
 TEST(ToolProxyTest, AbusiveSweepIsBitIdenticalForOneAndTwoThreads) {
   const Model m = Shoulder();
   SetThreadCount(1);
-  const SweepResult a = Sweep(m, 40, false);
+  const SweepResult a = Sweep(m, 100, false);
   SetThreadCount(2);
-  const SweepResult b = Sweep(m, 40, false);
+  const SweepResult b = Sweep(m, 100, false);
   SetThreadCount(1);
   EXPECT_TRUE(BitwiseEqual(a.state, b.state));
   EXPECT_EQ(HashState(a.state), HashState(b.state));
-  EXPECT_NE(a.state.tools[0].pose, a.state.tools[0].handle_pose);  // the proxy did act
+  EXPECT_GT(a.proxy_apart_steps, 0);  // the proxy did act
 }
 
 }  // namespace
