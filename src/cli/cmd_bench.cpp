@@ -1,4 +1,5 @@
-// arthrosim bench SCENARIO [--steps N] [--trajectory F] [--beam-mesh F] [--render]
+// arthrosim bench SCENARIO [--steps N] [--trajectory F] [--abusive F] [--ops-dir D]
+//                          [--beam-mesh F] [--render]
 // Times the step stage by stage on one thread and prints a table plus one name=value line per
 // figure (for scripts). Also runs the cantilever beam of the physics verification (speed at
 // equal accuracy: ms per step and how far the settled tip is from the static solution).
@@ -6,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <numeric>
 #include <vector>
@@ -25,6 +27,7 @@ namespace {
 
 struct BenchArgs {
   std::string scenario, trajectory, beam_mesh = "tests/testdata/beam/beam_2.5.msh";
+  std::string abusive = "trajectories/abusive_sweep.yaml", ops_dir = "trajectories/ops";
   int steps = 100;
   int threads = 1;
   bool render = false;
@@ -41,19 +44,35 @@ double Mean(const std::vector<double>& v) {
   return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
 }
 
+// The q-quantile (0..1) by the nearest-rank method; 0 for no samples.
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+  return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
+}
+
+double Max(const std::vector<double>& v) {
+  return v.empty() ? 0 : *std::max_element(v.begin(), v.end());
+}
+
 struct Series {
   std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output,
       cg_it, physics;  // physics: soft tissue + threads (the step without collision)
   double last_residual = 0;
-  int refactors = 0;       // steps that refactored the preconditioner
-  double refactor_ms = 0;  // their total factorisation time
+  int refactors = 0;                // steps that refactored the preconditioner
+  double refactor_ms = 0;           // their total factorisation time
+  std::vector<std::uint8_t> holds;  // per timed step: bit s set = slot s holds `instrument`
+  double cg_it_max = 0;
 };
 
-Series TimeScenario(const Model& model, const BenchArgs& a) {
+// Times `steps` steps of the trajectory (< 0: until it is finished, at most 100 000) after a
+// short warm-up; `instrument` (or -1) marks the steps where a slot holds it.
+Series TimeScenario(const Model& model, const std::string& trajectory, int steps,
+                    int instrument = -1) {
   input::SourceOptions options;
   options.dt_s = model.options.dt_s;
-  auto source =
-      input::OpenInputSource(a.trajectory.empty() ? "none" : a.trajectory, model, options);
+  auto source = input::OpenInputSource(trajectory.empty() ? "none" : trajectory, model, options);
   State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);
@@ -62,9 +81,14 @@ Series TimeScenario(const Model& model, const BenchArgs& a) {
   Series s;
   InputFrame frame;
   constexpr int kWarmup = 3;
-  for (int k = 0; k < a.steps + kWarmup; ++k) {
+  const int total = steps >= 0 ? steps + kWarmup : 100000;
+  for (int k = 0; k < total; ++k) {
+    if (steps < 0 && source->Finished(static_cast<double>(state.step + 1) * model.options.dt_s)) {
+      break;
+    }
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
     sim::Step(model, frame, &state, &ws);
+    source->Feedback(sim::Feedback(state));
     const auto t0 = std::chrono::steady_clock::now();
     writer.Append(state);
     const double output_ms =
@@ -81,6 +105,12 @@ Series TimeScenario(const Model& model, const BenchArgs& a) {
     s.physics.push_back(t.soft_ms + t.thread_ms);
     s.output.push_back(output_ms);
     s.cg_it.push_back(t.soft.cg_iterations);
+    s.cg_it_max = std::max(s.cg_it_max, static_cast<double>(t.soft.cg_iterations));
+    std::uint8_t holds = 0;
+    for (int slot = 0; slot < kToolSlots; ++slot) {
+      if (instrument >= 0 && state.tools[slot].instrument == instrument) holds |= 1u << slot;
+    }
+    s.holds.push_back(holds);
     s.last_residual = t.soft.cg_relative_residual;
     if (t.soft.refactored) {
       ++s.refactors;
@@ -126,6 +156,52 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("step_ms_mean={:.3f}\n", Mean(s.step));
   fmt::print("refactors={}\nrefactor_ms_mean={:.3f}\n", s.refactors,
              s.refactors ? s.refactor_ms / s.refactors : 0.0);
+  fmt::print("step_ms_p99={:.3f}\nstep_ms_max={:.3f}\n", Quantile(s.step, 0.99), Max(s.step));
+}
+
+// The abusive replay: a tool swept through the anatomy (mean, p99 and worst step beside the
+// median: what a trainee feels is the worst step, not the median one).
+void PrintAbusive(const Model& model, const std::string& trajectory) {
+  if (!std::filesystem::exists(trajectory)) {
+    fmt::print("abusive replay: skipped ({} not found; run from the source tree)\n", trajectory);
+    return;
+  }
+  const Series s = TimeScenario(model, trajectory, -1);
+  fmt::print("abusive replay {}: {} steps\n", trajectory, s.step.size());
+  fmt::print("abusive_step_ms_median={:.3f}\nabusive_step_ms_mean={:.3f}\n", Median(s.step),
+             Mean(s.step));
+  fmt::print("abusive_step_ms_p99={:.3f}\nabusive_step_ms_max={:.3f}\n", Quantile(s.step, 0.99),
+             Max(s.step));
+  fmt::print("abusive_cg_iterations_mean={:.2f}\nabusive_cg_iterations_max={:.0f}\n", Mean(s.cg_it),
+             s.cg_it_max);
+  fmt::print("abusive_refactors_per_1000_steps={:.1f}\n",
+             s.step.empty() ? 0.0 : 1000.0 * s.refactors / static_cast<double>(s.step.size()));
+}
+
+// One pair of figures per operation trajectory (ops_dir/<instrument>.yaml): the median and the
+// worst step among the steps where a slot holds that instrument.
+void PrintOperations(const Model& model, const std::string& ops_dir) {
+  if (!std::filesystem::is_directory(ops_dir)) return;
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(ops_dir)) {
+    if (e.path().extension() == ".yaml") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  for (const std::filesystem::path& f : files) {
+    const std::string name = f.stem().string();
+    const int instrument = model.FindInstrument(name);
+    if (instrument < 0) {
+      fmt::print("op {}: skipped (no instrument of that name in the scenario)\n", name);
+      continue;
+    }
+    const Series s = TimeScenario(model, f.string(), -1, instrument);
+    std::vector<double> held;
+    for (std::size_t k = 0; k < s.step.size(); ++k) {
+      if (s.holds[k] != 0) held.push_back(s.step[k]);
+    }
+    fmt::print("op_{}_median_step_ms={:.3f}\nop_{}_worst_step_ms={:.3f}\n", name, Median(held),
+               name, Max(held));
+  }
 }
 
 // Soft tissue alone (CPU time): idle and driven by a grasper-like spring, refined 4x and 16x,
@@ -173,6 +249,12 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("--trajectory", a->trajectory, "Input during the timed steps (default: idle)");
+  cmd->add_option("--abusive", a->abusive,
+                  "Abusive replay timed after the main figures (skipped if absent)")
+      ->capture_default_str();
+  cmd->add_option("--ops-dir", a->ops_dir,
+                  "Directory of operation trajectories <instrument>.yaml timed one by one")
+      ->capture_default_str();
   cmd->add_option("--beam-mesh", a->beam_mesh, "Cantilever mesh for the beam figures")
       ->capture_default_str();
   cmd->add_option("--threads", a->threads,
@@ -185,7 +267,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     SetThreadCount(a->threads);
     const Model model = io::LoadScenario(a->scenario);
     fmt::print("bench_threads={}\n", a->threads);
-    PrintScenario(model, TimeScenario(model, *a), a->steps);
+    PrintScenario(model, TimeScenario(model, a->trajectory, a->steps), a->steps);
+    PrintAbusive(model, a->abusive);
+    PrintOperations(model, a->ops_dir);
     SetThreadCount(1);  // its figures are process CPU time
     PrintSoftSuite(model, a->beam_mesh);
     // Collision on the workload: a thread on the tendon, two instruments crossing it at

@@ -2,6 +2,7 @@
 // Loads the scenario, replays the trajectory through the fixed-step core and writes HDF5.
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -33,8 +34,33 @@ struct RunArgs {
   bool quiet = false;
   std::optional<std::uint64_t> seed;
   double noise_scale = 0;
-  bool live = false;  // serve: input from a device, paced to real time, runs until it ends
+  bool live = false;       // serve: input from a device, paced to real time, runs until it ends
+  double max_force_n = 0;  // serve --max-force: overrides haptics.max_force_n when > 0
   VideoArgs video;
+};
+
+// Live runs say when they fall behind real time: a log line and a `realtime_lag` event (detail
+// lag_s=<seconds>) when the lag first exceeds the threshold and each time it grows by another
+// second; a summary of the largest lag at the end.
+struct LagReporter {
+  double threshold_s = 0.1;
+  double reported_s = 0;  // lag at the last report; 0 = on time since
+  double max_s = 0;
+  int reports = 0;
+  void Check(double lag_s, State* state) {
+    max_s = std::max(max_s, lag_s);
+    if (lag_s < threshold_s) {
+      reported_s = 0;
+      return;
+    }
+    if (reported_s > 0 && lag_s < reported_s + 1.0) return;
+    reported_s = lag_s;
+    ++reports;
+    fmt::print(stderr, "serve: {:.3f} s behind real time at t = {:.3f} s (step {})\n", lag_s,
+               state->time_s, state->step);
+    state->events.push_back(Event{state->step, state->time_s, "realtime_lag", "", "",
+                                  fmt::format("lag_s={:.6f}", lag_s), Vec3::Zero()});
+  }
 };
 
 // Number of steps: --steps, else --duration, else the trajectory's length, else the scenario's.
@@ -57,7 +83,9 @@ std::int64_t StepCount(const RunArgs& a, const Model& m, const input::InputSourc
 
 int Run(const RunArgs& a) {
   SetThreadCount(a.threads);
-  const Model model = io::LoadScenario(a.scenario);
+  Model loaded = io::LoadScenario(a.scenario);
+  if (a.max_force_n > 0) loaded.haptics.max_force_n = a.max_force_n;
+  const Model model = std::move(loaded);
   input::SourceOptions options;
   options.dt_s = model.options.dt_s;
   options.seed = a.seed;
@@ -85,11 +113,14 @@ int Run(const RunArgs& a) {
   ProgressBar bar(steps, !a.quiet && !a.live);
   InputFrame frame;
   const int every = model.options.output_every_steps;
+  LagReporter lag;
+  lag.threshold_s = std::max(lag.threshold_s, 5 * model.options.dt_s);
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
     sim::Step(model, frame, &state, &ws);
     source->Feedback(sim::Feedback(state));
+    if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (state.step % every == 0) {
       writer.Append(state);
       if (video) video->Push(state);
@@ -100,6 +131,10 @@ int Run(const RunArgs& a) {
   }
   bar.Finish();
   writer.Close();
+  if (a.live && lag.max_s > 0) {
+    fmt::print(stderr, "serve: largest lag behind real time {:.3f} s ({} reports)\n", lag.max_s,
+               lag.reports);
+  }
   if (video) video->Finish();
   if (g_interrupted) {
     fmt::print(stderr, "interrupted at step {}: {} holds {} frames\n", state.step, out,
@@ -129,6 +164,10 @@ void AddServeCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--record", a->record, "Record the received stream as a session CSV");
   cmd->add_option("--out", a->out, "HDF5 output file (default: the scenario's output.file)");
   cmd->add_option("--duration", a->duration_s, "Stop after this many simulated seconds")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--max-force", a->max_force_n,
+                  "Clamp of the force sent to the device, N (default: the scenario's "
+                  "haptics.max_force_n; docs/haptics.md lists device values)")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--quiet", a->quiet, "No progress bar or summary");
   cmd->callback([a, bind, port, exit_code] {

@@ -7,6 +7,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
@@ -131,6 +132,8 @@ struct IgtlServer::Impl {
   IgtlServerStats stats;
   std::vector<std::unique_ptr<Client>> clients;
   double last_t = 0;
+  double lag_s = 0;                                  // of the last Frame (realtime pacing)
+  std::array<bool, kToolSlots> posed{false, false};  // a TRANSFORM arrived for the slot
   bool have_origin = false;
   std::chrono::steady_clock::time_point origin;
 
@@ -173,6 +176,7 @@ struct IgtlServer::Impl {
       const std::optional<Pose> pose = igtl_wire::DecodeTransform(m, &why);
       if (!pose) return Drop(why);
       (dev == 2 ? state.camera.pose : state.tools[dev].pose) = *pose;
+      if (dev < kToolSlots) posed[static_cast<std::size_t>(dev)] = true;
     } else if (m.type == "STRING") {
       const std::optional<std::string> text = igtl_wire::DecodeString(m, &why);
       if (!text) return Drop(why);
@@ -320,12 +324,14 @@ void IgtlServer::Frame(std::int64_t /*step*/, double t_s, InputFrame* out) {
       s.origin = now - at;
       s.have_origin = true;
     }
+    s.lag_s = std::max(0.0, std::chrono::duration<double>(now - (s.origin + at)).count());
     std::this_thread::sleep_until(s.origin + at);
   }
   std::lock_guard<std::mutex> lock(s.mu);
   *out = s.state;
   for (int k = 0; k < kToolSlots; ++k) {
     out->tools[k].buttons = static_cast<std::uint8_t>(s.state.tools[k].buttons | s.latched[k]);
+    if (!s.posed[static_cast<std::size_t>(k)]) out->tools[k].instrument = -1;  // no pose yet
     s.latched[k] = 0;
   }
   s.last_t = t_s;
@@ -347,6 +353,11 @@ void IgtlServer::Feedback(const FeedbackFrame& feedback) {
 bool IgtlServer::Finished(double) const {
   std::lock_guard<std::mutex> lock(impl_->mu);
   return impl_->session_end || impl_->stop.load();
+}
+
+double IgtlServer::RealtimeLagS() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->lag_s;
 }
 
 IgtlServerStats IgtlServer::stats() const {

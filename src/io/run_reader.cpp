@@ -90,7 +90,11 @@ void ReadFields(const FieldsIn& in, hsize_t t, int slot, hsize_t nodes, hsize_t 
     if constexpr (detail::kFrameValue<T>) {
       const hsize_t rows = info.dim == FieldDim::kElements ? elements : nodes;
       if (!in.ds[i].valid()) {
-        value = T{};
+        if constexpr (std::is_same_v<T, Vec3>) {
+          value = Vec3::Zero();  // Vec3{} leaves Eigen's storage uninitialised
+        } else {
+          value = T{};
+        }
       } else {
         ReadValue(in.ds[i], in.types[i], t, slot, rows, &value);
       }

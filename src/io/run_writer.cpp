@@ -388,6 +388,7 @@ void RunWriter::Impl::CreateTools(const Model& model, const State& initial) {
   const ToolState& sample = initial.tools[0];
   absent.pose.position_mm.setConstant(kNaN);
   absent.pose.orientation.coeffs().setConstant(kNaN);
+  absent.handle_pose = absent.pose;
   h5::Group gto = file.root().CreateGroup(layout::kTools);
   tools.resize(model.instruments.size());
   for (std::size_t i = 0; i < tools.size(); ++i) {

@@ -151,6 +151,21 @@ void ReadThreadSolver(const YamlSection& root, Model* m) {
   t.exclusion_factor = s.NonNegative("exclusion_factor", t.exclusion_factor);
 }
 
+// Optional `haptics:` section: the handle-proxy coupling and the force clamp (docs/haptics.md).
+void ReadHaptics(const YamlSection& root, Model* m) {
+  if (!root.Has("haptics")) return;
+  HapticsOptions& h = m->haptics;
+  YamlSection s(
+      root.reader(), root.Get("haptics"), "haptics",
+      {"proxy", "coupling_stiffness_n_per_mm", "coupling_damping_n_s_per_mm", "max_force_n"});
+  h.proxy = s.Bool("proxy", h.proxy);
+  h.coupling_stiffness_n_per_mm =
+      s.Positive("coupling_stiffness_n_per_mm", h.coupling_stiffness_n_per_mm);
+  h.coupling_damping_n_s_per_mm =
+      s.NonNegative("coupling_damping_n_s_per_mm", h.coupling_damping_n_s_per_mm);
+  h.max_force_n = s.Positive("max_force_n", h.max_force_n);
+}
+
 void ReadMaterials(const YamlSection& root, Model* m) {
   const YAML::Node materials = root.Required("materials");
   if (!materials.IsMap())
@@ -462,8 +477,8 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
   YamlSection root(ctx, doc, "",
                    {"name", "seed", "time", "gravity", "solver", "output", "contact", "operations",
-                    "thread_solver", "materials", "bodies", "joins", "portals", "instruments",
-                    "camera", "landmarks", "regions"});
+                    "thread_solver", "haptics", "materials", "bodies", "joins", "portals",
+                    "instruments", "camera", "landmarks", "regions"});
   Model m;
   m.scenario_path = path;
   m.scenario_text = text;
@@ -472,6 +487,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   ReadTimeAndSolver(root, &m);
   ReadContact(root, &m);
   ReadThreadSolver(root, &m);
+  ReadHaptics(root, &m);
   ReadMaterials(root, &m);
   std::vector<PendingFixed> pending_fixed;
   ReadBodies(root, fs::path(path).parent_path(), &m, &pending_fixed);

@@ -1,12 +1,14 @@
 // The step, as a table of contents: each stage is one named function below, in order.
 #include "arthrosim/sim/step.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "arthrosim/core/units.h"
 #include "arthrosim/instruments/instruments.h"
 #include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/tool_kinematics.h"
+#include "arthrosim/sim/tool_proxy.h"
 
 namespace arthrosim::sim {
 namespace {
@@ -19,12 +21,26 @@ double MsSince(Clock::time_point t0) {
 // Events describe one step only.
 void BeginStep(State* state) { state->events.clear(); }
 
+// Tool proxies: each instrument follows its handle along the swept path but stays outside bone,
+// sliding along it (god-object); the bone touches join the contact events after detection.
+void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
+                        State* state, Workspace* ws) {
+  sim::ResolveToolProxies(model, prev_tools, state, &ws->proxy);
+}
+
 // Collision: contacts of tools, tissue, thread and bone at the start of the step, with the
 // tool sweep from last step's pose (no tunnelling).
 void DetectContacts(const Model& model, const State& state,
                     const std::array<ToolState, kToolSlots>& prev_tools, Workspace* ws) {
   const auto t0 = Clock::now();
   collision::Detect(model, state, prev_tools, ws->collision_params, &ws->collision, &ws->contacts);
+  std::vector<ToolContact>& touches = ws->contacts.bone_touches;
+  for (const ToolContact& t : ws->proxy.touches) {
+    const bool known = std::any_of(touches.begin(), touches.end(), [&](const ToolContact& c) {
+      return c.tool_slot == t.tool_slot && c.body == t.body;
+    });
+    if (!known) touches.push_back(t);
+  }
   ws->timings.collision_ms = MsSince(t0);
 }
 
@@ -50,9 +66,11 @@ void SolveThreads(const Model& model, State* state, Workspace* ws) {
   ws->timings.thread_ms = MsSince(t0);
 }
 
-// Forces on the instruments (haptic feedback, /tools/<name>/force): the reactions of the solved
-// contacts plus those of springs held by a tool (a grasp pulls back on the grasper).
-void AccumulateToolForces(const Workspace& ws, State* state) {
+// Forces on the instruments (haptic feedback, /tools/<name>/force): the handle-proxy coupling,
+// the reactions of the solved contacts and those of springs held by a tool (a grasp pulls back
+// on the grasper), clamped to the device maximum.
+void AccumulateToolForces(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
+                          const Workspace& ws, State* state) {
   std::array<Vec3, kToolSlots> f = collision::ToolForces(ws.contacts);
   for (const physics::PointSpring& spring : ws.springs) {
     const SpringConstraint* c = physics::FindConstraint(*state, spring.constraint_id);
@@ -64,7 +82,12 @@ void AccumulateToolForces(const Workspace& ws, State* state) {
       }
     }
   }
-  for (int slot = 0; slot < kToolSlots; ++slot) state->tools[slot].force_n = f[slot];
+  for (int slot = 0; slot < kToolSlots; ++slot) {
+    ToolState& tool = state->tools[slot];
+    const Vec3 coupling = CouplingForce(model, prev_tools[slot], tool);
+    tool.tissue_force_n = f[slot];
+    tool.force_n = ClampForce(f[slot] + coupling, model.haptics.max_force_n);
+  }
 }
 
 // Contact start/end events, by comparing this step's touching pairs with the last step's.
@@ -97,6 +120,7 @@ void BuildWorkspace(const Model& model, const State& state, Workspace* ws) {
   physics::InitThreadWorkspace(model.threads, &ws->threads);
   ws->collision_params = collision::ParamsFromModel(model.contact);  // scenario `contact:`
   ws->collision = collision::CollisionWorld{};
+  ws->proxy = ProxyWorkspace{};
   collision::SyncWorld(model, state, &ws->collision);
 }
 
@@ -105,12 +129,13 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   BeginStep(state);
   const std::array<ToolState, kToolSlots> prev_tools = state->tools;
   ApplyToolCommands(model, input, state);
+  ResolveToolProxies(model, prev_tools, state, ws);
   ws->timings.kinematics_ms = MsSince(t0);
   DetectContacts(model, *state, prev_tools, ws);
   BuildConstraintSprings(*state, ws);
   SolveSoftTissue(model, state, ws);
   SolveThreads(model, state, ws);
-  AccumulateToolForces(*ws, state);
+  AccumulateToolForces(model, prev_tools, *ws, state);
   AdvanceTime(model, state);
   RecordContactEvents(model, ws, state);
   ApplyInstrumentActions(model, prev_tools, ws, state);

@@ -34,8 +34,8 @@ void ApplyToolCommands(const Model& model, const InputFrame& input, State* state
           cmd.pose.position_mm});
       tool.instrument = cmd.instrument;
     }
-    tool.pose = cmd.pose;
-    tool.pose.orientation.normalize();
+    tool.handle_pose = cmd.pose;  // the proxy stage moves tool.pose after it
+    tool.handle_pose.orientation.normalize();
     tool.jaw = std::clamp(cmd.jaw, 0.0, 1.0);
     tool.buttons = cmd.buttons;
   }

@@ -128,6 +128,42 @@ TEST(Igtl, LoopbackStreamingAppliesPosesAndCommands) {
   EXPECT_EQ(server.stats().dropped, 0u);
 }
 
+// An instrument chosen before its first pose arrives is not inserted (it would sit at the
+// identity pose, inside the anatomy, and push on it): it appears with its first TRANSFORM.
+TEST(Igtl, InstrumentHasNoPoseUntilItsFirstTransform) {
+  const Model m = MakeTestModel();
+  Log log;
+  IgtlServer server(m, Options(&log));
+  const int fd = igtl_wire::Connect("127.0.0.1", server.port(), 2.0);
+  ASSERT_GE(fd, 0);
+  SendAll(fd, igtl_wire::EncodeString("Command", "slot0 instrument=grasper", 1.0));
+  ASSERT_TRUE(server.WaitUntilApplied(1, 2.0));
+  InputFrame f;
+  server.Frame(1, 0.02, &f);
+  EXPECT_EQ(f.tools[0].instrument, -1);
+  Pose p;
+  p.position_mm = Vec3(4, 5, 6);
+  SendAll(fd, igtl_wire::EncodeTransform("Slot0ToReference", p, 2.0));
+  ASSERT_TRUE(server.WaitUntilApplied(2, 2.0));
+  server.Frame(2, 0.04, &f);
+  EXPECT_EQ(f.tools[0].instrument, m.FindInstrument("grasper"));
+  EXPECT_NEAR((f.tools[0].pose.position_mm - p.position_mm).norm(), 0, 1e-5);
+  ::close(fd);
+}
+
+// A step that starts late (the previous one took longer than dt) is reported, not hidden.
+TEST(Igtl, RealtimePacingMeasuresTheLag) {
+  const Model m = MakeTestModel();
+  Log log;
+  IgtlServer server(m, Options(&log, /*realtime=*/true));
+  InputFrame f;
+  server.Frame(1, 0.02, &f);
+  EXPECT_EQ(server.RealtimeLagS(), 0.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a 300 ms step
+  server.Frame(2, 0.04, &f);
+  EXPECT_GE(server.RealtimeLagS(), 0.25);
+}
+
 TEST(Igtl, MalformedOversizedAndOutOfOrderMessagesAreDropped) {
   const Model m = MakeTestModel();
   Log log;

@@ -2,9 +2,11 @@
 """Compares two run files dataset by dataset and attribute by attribute (bytes, shapes, dtypes,
 chunking, filters, fill values).
 
-usage: compare_runs.py A.h5 B.h5 [--quiet]
+usage: compare_runs.py A.h5 B.h5 [--quiet] [--ignore-event KIND ...]
 Wall-clock metadata (/meta attribute created_utc) is the only thing allowed to differ; the HDF5
-files themselves may differ in bytes (object addresses, timestamps). Exit 0 if equal, 1 if not.
+files themselves may differ in bytes (object addresses, timestamps). --ignore-event KIND leaves
+out events of that kind from /events and /events_end before comparing them (e.g. realtime_lag,
+which a live run records about the wall clock and its replay cannot). Exit 0 if equal, 1 if not.
 """
 import sys
 
@@ -37,9 +39,21 @@ def same_value(a, b):
     return type(a) is type(b) and a == b
 
 
+def without_events(h, ignored):
+    """(/events rows, /events_end) with the rows of the ignored kinds left out."""
+    rows = h["events"][()]
+    end = h["events_end"][()]
+    keep = np.array([r.decode().rstrip("\0") not in ignored if isinstance(r, bytes) else
+                     str(r) not in ignored for r in rows["kind"]], dtype=bool)
+    kept = np.concatenate([[0], np.cumsum(keep)]).astype(end.dtype)
+    return rows[keep], kept[end]
+
+
 def main():
     a_path, b_path = sys.argv[1], sys.argv[2]
     quiet = "--quiet" in sys.argv
+    ignored = {sys.argv[i + 1] for i in range(3, len(sys.argv) - 1)
+               if sys.argv[i] == "--ignore-event"}
     diffs = []
     with h5py.File(a_path, "r") as a, h5py.File(b_path, "r") as b:
         ia, ib = items(a), items(b)
@@ -67,6 +81,12 @@ def main():
                     fa, fb = oa.fillvalue, ob.fillvalue
                     if np.asarray(fa).tobytes() != np.asarray(fb).tobytes():
                         diffs.append(f"{path}: fill value {fa!r} vs {fb!r}")
+                if ignored and path in ("/events", "/events_end"):
+                    ea, eb = without_events(a, ignored), without_events(b, ignored)
+                    k = 0 if path == "/events" else 1
+                    if ea[k].tobytes() != eb[k].tobytes():
+                        diffs.append(f"{path}: data differs (ignoring {sorted(ignored)})")
+                    continue
                 if oa.dtype != ob.dtype or oa.shape != ob.shape:
                     diffs.append(f"{path}: {oa.dtype}{oa.shape} vs {ob.dtype}{ob.shape}")
                 elif oa.dtype.kind == "O":  # variable-length strings

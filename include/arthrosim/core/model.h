@@ -214,6 +214,17 @@ struct ThreadSolverOptions {
   double exclusion_factor = 1.5;
 };
 
+/// Haptic coupling of a handle (the device or scripted pose) to the simulated instrument, its
+/// proxy (scenario section `haptics:`, all optional; docs/haptics.md). The proxy follows the
+/// handle but stays outside bone; the force fed back is a spring-damper between the two plus the
+/// soft-tissue reactions, clamped to max_force_n.
+struct HapticsOptions {
+  bool proxy = true;                           ///< false: the instrument is the handle (no proxy)
+  double coupling_stiffness_n_per_mm = 1.0;    ///< virtual coupling spring, N/mm
+  double coupling_damping_n_s_per_mm = 0.002;  ///< virtual coupling damper, N*s/mm
+  double max_force_n = 25.0;                   ///< clamp of the fed-back force magnitude, N
+};
+
 /// Run options.
 struct Options {
   double dt_s = 0.02;
@@ -236,6 +247,7 @@ struct Model {
   ContactOptions contact;
   OperationOptions operations;  ///< scenario `operations:`
   ThreadSolverOptions thread_solver;
+  HapticsOptions haptics;  ///< scenario `haptics:`
   std::vector<Material> materials;
   std::vector<SoftBodyModel> soft_bodies;
   std::vector<BoneModel> bones;

@@ -76,10 +76,16 @@ struct SpringConstraint {
 /// Per instrument-slot state (a working hand / portal).
 struct ToolState {
   std::int32_t instrument = -1;  ///< index into Model::instruments, -1 = none inserted
-  Pose pose;                     ///< tip pose in world (+z forward; shaft along -z)
-  double jaw = 0;                ///< 0 open ... 1 closed
-  std::uint8_t buttons = 0;      ///< bit 0 = button 1, bit 1 = button 2
-  Vec3 force_n = Vec3::Zero();   ///< contact force on the instrument this step, N
+  Pose pose;                 ///< instrument (proxy) tip pose in world (+z forward; shaft along -z)
+  Pose handle_pose;          ///< commanded (device / script) tip pose; pose follows it outside bone
+  double jaw = 0;            ///< 0 open ... 1 closed
+  std::uint8_t buttons = 0;  ///< bit 0 = button 1, bit 1 = button 2
+  /// Force fed back to the hand this step, N: handle-proxy coupling plus soft-tissue reactions,
+  /// clamped to Model::haptics.max_force_n.
+  Vec3 force_n = Vec3::Zero();
+  /// Reactions of soft tissue, threads and held springs on the instrument this step, N
+  /// (unclamped; force_n without the coupling). The proxy reads it to bound pressing on tissue.
+  Vec3 tissue_force_n = Vec3::Zero();
 };
 
 /// Arthroscope state.

@@ -133,9 +133,11 @@ void VisitFields(S& t, V&& v) {
   v(t.instrument,
     FieldInfo{"instrument", "", FieldStore::kFrame, FieldDim::kFixed, FieldFill::kMinusOne});
   v(t.pose, FieldInfo{"pose", "mm, quaternion", FieldStore::kFrame});
+  v(t.handle_pose, FieldInfo{"handle_pose", "mm, quaternion", FieldStore::kFrame});
   v(t.jaw, FieldInfo{"jaw", "", FieldStore::kFrame});
   v(t.buttons, FieldInfo{"buttons", "", FieldStore::kFrame});
   v(t.force_n, FieldInfo{"force", "N", FieldStore::kFrame});
+  v(t.tissue_force_n, FieldInfo{"tissue_force", "N", FieldStore::kFrame});
 }
 
 /// Every member of the arthroscope.

@@ -43,12 +43,15 @@ class IgtlServer : public InputSource {
 
   /// The port actually bound.
   int port() const;
-  /// Latest device state; buttons are OR-ed over everything received since the last Frame.
+  /// Latest device state; buttons are OR-ed over everything received since the last Frame. A
+  /// slot whose TRANSFORM has not arrived yet has no instrument (-1): it has no pose to be at.
   void Frame(std::int64_t step, double t_s, InputFrame* out) override;
   /// Queues one SENSOR message per slot (force in N, world frame) to every client.
   void Feedback(const FeedbackFrame& feedback) override;
   /// True after a client sent the STRING "session end" or Stop() was called.
   bool Finished(double t_s) const override;
+  /// With realtime pacing: how late (s) the last Frame(t) was called after wall time t.
+  double RealtimeLagS() const override;
 
   IgtlServerStats stats() const;
   /// Blocks until stats().applied >= count or timeout_s passes; returns whether reached.

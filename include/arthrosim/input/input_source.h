@@ -34,6 +34,9 @@ class InputSource {
   virtual void Feedback(const FeedbackFrame& feedback) { (void)feedback; }
   /// True once the source has nothing more to say at time t_s (s); the run may stop.
   virtual bool Finished(double t_s) const = 0;
+  /// How far behind real time (s) the last Frame was asked for: > 0 when the steps take longer
+  /// than the simulated time they cover. 0 for sources not paced to the wall clock.
+  virtual double RealtimeLagS() const { return 0; }
 };
 
 /// The frame of a source with nothing inserted: both slots withdrawn, scope at its initial pose.

@@ -39,6 +39,7 @@ class RecordingSource : public InputSource {
   }
   void Feedback(const FeedbackFrame& f) override { inner_->Feedback(f); }
   bool Finished(double t_s) const override { return inner_->Finished(t_s); }
+  double RealtimeLagS() const override { return inner_->RealtimeLagS(); }
   InputSource* inner() { return inner_.get(); }
 
  private:

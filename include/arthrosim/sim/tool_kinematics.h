@@ -7,7 +7,8 @@
 
 namespace arthrosim::sim {
 
-/// Copies the commanded poses, jaws and buttons into State; validates instrument indices.
+/// Copies the commanded poses (into ToolState::handle_pose; the proxy stage then moves
+/// ToolState::pose), jaws and buttons into State; validates instrument indices.
 /// @throws InputError if a command names an instrument index outside the Model.
 void ApplyToolCommands(const Model& model, const InputFrame& input, State* state);
 

@@ -9,6 +9,7 @@
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/soft_system.h"
 #include "arthrosim/physics/thread_chain.h"
+#include "arthrosim/sim/tool_proxy.h"
 
 namespace arthrosim::sim {
 
@@ -32,6 +33,7 @@ struct Workspace {
   collision::CollisionOutput contacts;           ///< this step's contacts (collision -> solvers)
   collision::ContactEventScratch event_scratch;  ///< work lists of the contact events stage
   physics::SpringSet springs;                    ///< runtime constraints, one per deformable end
+  ProxyWorkspace proxy;                          ///< tool proxies: bone trees, work lists
   instruments::InstrumentScratch instrument_scratch;  ///< work lists of the instrument actions
   StepTimings timings;
 };

@@ -1,0 +1,46 @@
+#pragma once
+// The tool proxy (god-object: Zilles & Salisbury 1995; Ruspini et al. 1997). The commanded pose
+// of a slot is its handle (State ToolState::handle_pose); the simulated instrument (ToolState::
+// pose) is a proxy that follows the handle along the swept path but stays outside rigid bone and
+// slides along its surface. The force fed back to the hand is a virtual coupling spring-damper
+// between handle and proxy plus the soft-tissue reactions on the instrument, clamped to
+// Model::haptics.max_force_n.
+#include <array>
+#include <vector>
+
+#include "arthrosim/collision/contact_generation.h"
+#include "arthrosim/collision/tool_bone_query.h"
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+
+namespace arthrosim::sim {
+
+/// Derived data and work lists of the proxy stage (Workspace: rebuilt from State at will).
+struct ProxyWorkspace {
+  collision::BoneQueryWorld bones;
+  std::vector<collision::ToolPrimitive> primitives;
+  /// (slot, bone) pairs the proxies rest against this step, with the bone contact point.
+  std::vector<ToolContact> touches;
+  std::array<int, kToolSlots> iterations{0, 0};  ///< resolution iterations used (diagnostics)
+};
+
+/// Moves each inserted slot's proxy (tools[s].pose) from its last pose toward tools[s].
+/// handle_pose, stopping at and sliding along bone surfaces, and lists the bone touches. A
+/// newly inserted instrument starts at its handle if that pose is clear of bone, else at its
+/// portal. Within 6 mm of bone, against soft tissue it pressed toward the bone last step
+/// (reaction > 0.05 N), the proxy advances at most 0.5 mm per step along the push, and not at all
+/// once the reaction reaches haptics.max_force_n, so tissue trapped against bone is pressed, not
+/// crushed through. With
+/// model.haptics.proxy false the proxy is the handle. Deterministic.
+void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
+                        State* state, ProxyWorkspace* ws);
+
+/// The virtual coupling force on the hand of one slot, N: stiffness * (proxy - handle) plus
+/// damping * d/dt(proxy - handle) (from the previous step's poses when the same instrument was
+/// held). Zero if nothing is inserted. Not clamped.
+Vec3 CouplingForce(const Model& model, const ToolState& prev, const ToolState& now);
+
+/// Force magnitude clamp of the haptic feedback: f scaled down to max_force_n if longer.
+Vec3 ClampForce(const Vec3& f, double max_force_n);
+
+}  // namespace arthrosim::sim

@@ -1,0 +1,189 @@
+#include "arthrosim/collision/tool_bone_query.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "arthrosim/collision/proximity.h"
+
+namespace arthrosim::collision {
+namespace {
+
+// Relative tolerance under which two triangle distances count as equally near (their face
+// normals are summed into the pseudo-normal that tells inside from outside at edges/vertices).
+constexpr double kTieRelative = 1e-9;
+// Below this distance (mm) the closest-point direction is meaningless: use the pseudo-normal.
+constexpr double kMinDirection = 1e-9;
+
+Box CoreBox(const Simplex& s) {
+  Box b;
+  for (int i = 0; i < s.n; ++i) b.Add(s.v[i]);
+  return b;
+}
+
+double BoxDistance(const Box& a, const Box& b) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double g = std::max(std::max(a.lo[k] - b.hi[k], b.lo[k] - a.hi[k]), 0.0);
+    d2 += g * g;
+  }
+  return std::sqrt(d2);
+}
+
+// A lower bound of the distance from any point of box b to the core: the box-box distance, and
+// for a segment also the distance from the box centre minus its half diagonal (tight for long
+// slanted shafts, whose bounding box is large). Both only shrink as b grows (tree culling).
+double CoreBoxLowerBound(const Simplex& core, const Box& core_box, const Box& b) {
+  double lower = BoxDistance(core_box, b);
+  if (core.n == 2) {
+    const Vec3 centre = 0.5 * (b.lo + b.hi);
+    const double half_diagonal = 0.5 * (b.hi - b.lo).norm();
+    const ClosestPair c = PointSegment(centre, core.v[0], core.v[1]);
+    lower = std::max(lower, std::sqrt(c.dist2) - half_diagonal);
+  }
+  return lower;
+}
+
+Vec3 FaceNormal(const BoneQueryWorld::Entry& e, std::int32_t t) {
+  const mesh::Tri& tri = e.tris[static_cast<std::size_t>(t)];
+  const Vec3& a = e.positions[static_cast<std::size_t>(tri[0])];
+  const Vec3 n = (e.positions[static_cast<std::size_t>(tri[1])] - a)
+                     .cross(e.positions[static_cast<std::size_t>(tri[2])] - a);
+  const double len = n.norm();
+  return len > 0 ? Vec3(n / len) : Vec3::UnitZ();
+}
+
+// Nearest of the candidate triangles to the core, with the pseudo-normal of the ties; the
+// signed distance of the core from the surface (> 0 outside) and the way out.
+struct CoreNearest {
+  bool found = false;
+  double signed_mm = 0;
+  Vec3 point = Vec3::Zero();
+  Vec3 out = Vec3::UnitZ();
+};
+
+CoreNearest NearestTo(const Simplex& core, const BoneQueryWorld::Entry& e,
+                      const std::vector<std::int32_t>& cand) {
+  CoreNearest r;
+  double best2 = std::numeric_limits<double>::infinity();
+  ClosestPair best_pair;
+  Vec3 pseudo = Vec3::Zero();
+  for (const std::int32_t t : cand) {
+    const mesh::Tri& tri = e.tris[static_cast<std::size_t>(t)];
+    const ClosestPair c =
+        Closest(core, TriangleSimplex(e.positions[static_cast<std::size_t>(tri[0])],
+                                      e.positions[static_cast<std::size_t>(tri[1])],
+                                      e.positions[static_cast<std::size_t>(tri[2])]));
+    if (c.dist2 < best2 * (1 - kTieRelative)) {
+      best2 = c.dist2;
+      best_pair = c;
+      pseudo = FaceNormal(e, t);
+    } else if (c.dist2 <= best2 * (1 + kTieRelative)) {
+      pseudo += FaceNormal(e, t);
+    }
+  }
+  if (cand.empty()) return r;
+  r.found = true;
+  const double dist = std::sqrt(best2);
+  const Vec3 delta = best_pair.pa - best_pair.pb;
+  const double pn = pseudo.norm();
+  const Vec3 pseudo_unit = pn > 0 ? Vec3(pseudo / pn) : Vec3::UnitZ();
+  const bool outside = delta.dot(pseudo_unit) >= 0;
+  r.signed_mm = outside ? dist : -dist;
+  r.point = best_pair.pb;
+  if (dist > kMinDirection) {
+    r.out = outside ? Vec3(delta / dist) : Vec3(-delta / dist);
+  } else {
+    r.out = pseudo_unit;
+  }
+  return r;
+}
+
+}  // namespace
+
+void SyncBoneQuery(const State& state, BoneQueryWorld* world) {
+  world->bones.resize(state.bones.size());
+  for (std::size_t g = 0; g < state.bones.size(); ++g) {
+    const mesh::TriMesh& m = state.bones[g].surface;
+    BoneQueryWorld::Entry& e = world->bones[g];
+    const bool same = e.built && e.revision == state.bones[g].revision &&
+                      e.positions.size() == static_cast<std::size_t>(m.nodes.cols()) &&
+                      e.tris.size() == m.tris.size();
+    if (same) continue;
+    e.positions.resize(static_cast<std::size_t>(m.nodes.cols()));
+    for (Eigen::Index i = 0; i < m.nodes.cols(); ++i) {
+      e.positions[static_cast<std::size_t>(i)] = m.nodes.col(i);
+    }
+    e.tris = m.tris;
+    e.bvh.Build(e.positions, e.tris);
+    e.revision = state.bones[g].revision;
+    e.built = true;
+  }
+}
+
+ToolBoneHit ToolBoneClearance(const std::vector<ToolPrimitive>& primitives, double reach_mm,
+                              BoneQueryWorld* world) {
+  ToolBoneHit hit;
+  hit.clearance_mm = reach_mm;
+  std::vector<std::int32_t>& cand = world->candidates;
+  for (std::size_t p = 0; p < primitives.size(); ++p) {
+    const ToolPrimitive& prim = primitives[p];
+    if (!prim.contacts) continue;
+    const Box core_box = CoreBox(prim.core);
+    const double search = prim.radius_mm + reach_mm;
+    for (std::size_t g = 0; g < world->bones.size(); ++g) {
+      const BoneQueryWorld::Entry& e = world->bones[g];
+      if (e.bvh.empty() || BoxDistance(core_box, e.bvh.Bounds()) > search) continue;
+      cand.clear();
+      e.bvh.QueryIf(
+          [&](const Box& b) { return CoreBoxLowerBound(prim.core, core_box, b) <= search; }, &cand);
+      const CoreNearest n = NearestTo(prim.core, e, cand);
+      if (!n.found) continue;
+      const double clearance = n.signed_mm - prim.radius_mm;
+      if (clearance < hit.clearance_mm) {
+        hit.clearance_mm = clearance;
+        hit.bone = static_cast<std::int32_t>(g);
+        hit.primitive = static_cast<std::int32_t>(p);
+        hit.point_mm = n.point;
+        hit.normal = n.out;
+      }
+    }
+  }
+  return hit;
+}
+
+double PointBoneSignedDistance(const Vec3& p, BoneQueryWorld* world) {
+  double best = std::numeric_limits<double>::infinity();
+  std::vector<std::int32_t>& cand = world->candidates;
+  const Simplex point = PointSimplex(p);
+  for (const BoneQueryWorld::Entry& e : world->bones) {
+    if (e.bvh.empty()) continue;
+    Box query;
+    query.Add(p);
+    // Grow the search box until it holds a triangle; the nearest one is then within the
+    // distance to that triangle's farthest box corner, so one more query of that radius is exact.
+    double radius = 1.0;
+    cand.clear();
+    for (int k = 0; k < 64 && cand.empty(); ++k) {
+      e.bvh.Query(query.Inflated(radius), &cand);
+      radius *= 2;
+    }
+    if (cand.empty()) continue;  // not a finite point
+    double reach = 0;
+    for (const std::int32_t t : cand) {
+      const Box& b = e.bvh.TriangleBox(t);
+      for (int k = 0; k < 8; ++k) {
+        const Vec3 corner((k & 1) ? b.hi.x() : b.lo.x(), (k & 2) ? b.hi.y() : b.lo.y(),
+                          (k & 4) ? b.hi.z() : b.lo.z());
+        reach = std::max(reach, (corner - p).norm());
+      }
+    }
+    cand.clear();
+    e.bvh.Query(query.Inflated(reach), &cand);
+    const CoreNearest n = NearestTo(point, e, cand);
+    if (n.found) best = std::min(best, n.signed_mm);  // inside any bone wins
+  }
+  return best;
+}
+
+}  // namespace arthrosim::collision

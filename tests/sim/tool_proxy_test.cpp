@@ -1,0 +1,346 @@
+// The tool proxy: instruments stay outside bone whatever the hand does, the fed-back force is the
+// handle-proxy coupling, clamped. Each property is also checked with the proxy switched off,
+// where it fails (the contrast tests below).
+#include "arthrosim/sim/tool_proxy.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "arthrosim/collision/instrument_shape.h"
+#include "arthrosim/collision/tool_bone_query.h"
+#include "arthrosim/core/error.h"
+#include "arthrosim/core/parallel.h"
+#include "arthrosim/input/open_source.h"
+#include "arthrosim/io/scenario_loader.h"
+#include "arthrosim/sim/step.h"
+
+namespace arthrosim::sim {
+namespace {
+
+// A bone block [-20, 20] x [-20, 20] x [-40, 0] (top face z = 0), a burr and a portal above it.
+Model BlockBoneModel() {
+  Model m;
+  m.name = "block_bone";
+  BoneModel bone;
+  bone.name = "block";
+  bone.surface.nodes.resize(3, 8);
+  const double c[8][3] = {{-20, -20, -40}, {20, -20, -40}, {20, 20, -40}, {-20, 20, -40},
+                          {-20, -20, 0},   {20, -20, 0},   {20, 20, 0},   {-20, 20, 0}};
+  for (int i = 0; i < 8; ++i) bone.surface.nodes.col(i) = Vec3(c[i][0], c[i][1], c[i][2]);
+  bone.surface.tris = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
+                       {2, 3, 7}, {2, 7, 6}, {0, 4, 7}, {0, 7, 3}, {1, 2, 6}, {1, 6, 5}};
+  m.bones.push_back(bone);
+  m.portals.push_back({"top", Vec3(0, 0, 60)});
+  InstrumentModel burr;
+  burr.name = "burr";
+  burr.kind = InstrumentKind::kBurr;
+  burr.portal = "top";
+  burr.shaft_diameter_mm = 5.5;
+  burr.tip_length_mm = 5.5;
+  burr.tip_radius_mm = 2.75;
+  m.instruments.push_back(burr);
+  m.options.gravity_mm_s2 = Vec3::Zero();
+  return m;
+}
+
+// The burr pointing straight down (tool +z = world -z) with its tip at `tip`.
+InputFrame BurrAt(const Vec3& tip) {
+  InputFrame f;
+  f.tools[0].instrument = 0;
+  f.tools[0].pose.position_mm = tip;
+  f.tools[0].pose.orientation = Quat(Eigen::AngleAxisd(std::numbers::pi, Vec3::UnitX()));
+  return f;
+}
+
+// Smallest clearance (signed distance - radius, mm) of the instrument's contacting parts from
+// bone, from points sampled every 0.2 mm over each part's core with the exact point query (a
+// different search from the proxy's own).
+double SampledClearance(const Model& m, const State& s, int slot) {
+  collision::BoneQueryWorld bones;
+  collision::SyncBoneQuery(s, &bones);
+  double lowest = 1e300;
+  for (const collision::ToolPrimitive& p :
+       collision::ToolPrimitivesWorld(m, s.tools[static_cast<std::size_t>(slot)])) {
+    if (!p.contacts) continue;
+    auto sample = [&](const Vec3& a, const Vec3& b) {
+      const int n = 1 + static_cast<int>((b - a).norm() / 0.2);
+      for (int i = 0; i <= n; ++i) {
+        const Vec3 x = a + (b - a) * (static_cast<double>(i) / n);
+        lowest = std::min(lowest, collision::PointBoneSignedDistance(x, &bones) - p.radius_mm);
+      }
+    };
+    const auto& v = p.core.v;
+    if (p.core.n == 1) sample(v[0], v[0]);
+    for (int i = 0; i < p.core.n && p.core.n > 1; ++i) sample(v[i], v[(i + 1) % p.core.n]);
+  }
+  return lowest;
+}
+
+// The same, exactly (closest points of each part's core to every bone triangle within 4 mm), from
+// a bone search built afresh for this state: cheap enough for every step of a long run.
+double ExactClearance(const Model& m, const State& s, int slot) {
+  collision::BoneQueryWorld bones;
+  collision::SyncBoneQuery(s, &bones);
+  return collision::ToolBoneClearance(
+             collision::ToolPrimitivesWorld(m, s.tools[static_cast<std::size_t>(slot)]), 4.0,
+             &bones)
+      .clearance_mm;
+}
+
+struct Sim {
+  Model model;
+  State state;
+  Workspace ws;
+  explicit Sim(Model m) : model(std::move(m)), state(MakeInitialState(model)) {
+    BuildWorkspace(model, state, &ws);
+  }
+  void Step(const InputFrame& f) { sim::Step(model, f, &state, &ws); }
+};
+
+TEST(ToolProxyTest, HandleSpringGivesTheExpectedForceForAKnownPenetration) {
+  Sim r(BlockBoneModel());
+  const double k = r.model.haptics.coupling_stiffness_n_per_mm;
+  r.Step(BurrAt(Vec3(1, 2, 10)));  // inserted 10 mm above the bone: the proxy is the handle
+  EXPECT_EQ(r.state.tools[0].pose, r.state.tools[0].handle_pose);
+  EXPECT_EQ(r.state.tools[0].force_n, Vec3::Zero());
+  const double depth = 3.0;  // handle tip 3 mm into the bone
+  for (int i = 0; i < 3; ++i) r.Step(BurrAt(Vec3(1, 2, -depth)));
+  const ToolState& t = r.state.tools[0];
+  // The burr sphere (its front is the tip) rests on the top face, straight above the handle.
+  EXPECT_NEAR(t.pose.position_mm.z(), 0.0, 0.01);
+  EXPECT_NEAR(t.pose.position_mm.x(), 1.0, 1e-9);
+  EXPECT_NEAR(t.pose.position_mm.y(), 2.0, 1e-9);
+  // The spring stretched by the depth pushes the hand out of the bone (no damping at rest).
+  EXPECT_NEAR(t.force_n.z(), k * depth, 0.01 * k);
+  EXPECT_NEAR(t.force_n.x(), 0.0, 1e-9);
+  EXPECT_NEAR(t.force_n.y(), 0.0, 1e-9);
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+  // Bone touch reported for the contact events and the bone operations.
+  ASSERT_EQ(r.ws.contacts.bone_touches.size(), 1u);
+  EXPECT_NEAR(r.ws.contacts.bone_touches[0].position_mm.z(), 0.0, 1e-9);
+}
+
+TEST(ToolProxyTest, WithoutTheProxyTheHandleEntersTheBone) {
+  Model m = BlockBoneModel();
+  m.haptics.proxy = false;
+  Sim r(std::move(m));
+  r.Step(BurrAt(Vec3(1, 2, 10)));
+  for (int i = 0; i < 3; ++i) r.Step(BurrAt(Vec3(1, 2, -3)));
+  EXPECT_LT(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+// A hand pressing the burr into bone with a 20 N target (admittance: depth rate = gain * (target
+// - fed-back force), as a script's force push): the burr stays on the surface, nothing is
+// removed, and the fed-back coupling force settles at the push.
+double PressBurr(Sim* r, double target_n) {
+  r->Step(BurrAt(Vec3(0, 0, 5)));
+  double z = 5.0;
+  for (int i = 0; i < 300; ++i) {
+    const double pressing = r->state.tools[0].force_n.z();
+    z -= std::clamp(5.0 * (target_n - pressing), -10.0, 10.0) * r->model.options.dt_s;
+    r->Step(BurrAt(Vec3(0, 0, z)));
+  }
+  return r->state.tools[0].force_n.z();
+}
+
+TEST(ToolProxyTest, BurrPressedIntoBoneWith20NStaysOnTheSurface) {
+  Sim run(BlockBoneModel());
+  Sim* r = &run;
+  const double force = PressBurr(r, 20.0);
+  EXPECT_NEAR(force, 20.0, 0.05);
+  const ToolState& t = r->state.tools[0];
+  const double k = r->model.haptics.coupling_stiffness_n_per_mm;
+  EXPECT_NEAR((t.pose.position_mm - t.handle_pose.position_mm).norm() * k, 20.0, 0.05);
+  const double clearance = SampledClearance(r->model, r->state, 0);
+  EXPECT_GE(clearance, -0.1);
+  EXPECT_LE(clearance, 0.1);  // on the surface, not hovering
+  EXPECT_EQ(r->state.bones[0].revision, 0u);
+  EXPECT_EQ(r->state.bones[0].surface.nodes, r->model.bones[0].surface.nodes);
+}
+
+TEST(ToolProxyTest, WithoutTheProxyThePressedBurrSinksIntoTheBone) {
+  Model m = BlockBoneModel();
+  m.haptics.proxy = false;
+  Sim r(std::move(m));
+  PressBurr(&r, 20.0);
+  EXPECT_LT(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+TEST(ToolProxyTest, ForceIsClampedToTheDeviceMaximum) {
+  Model m = BlockBoneModel();
+  m.haptics.max_force_n = 3.3;  // a Touch
+  Sim r(std::move(m));
+  r.Step(BurrAt(Vec3(0, 0, 10)));
+  for (int i = 0; i < 3; ++i) r.Step(BurrAt(Vec3(0, 0, -30)));
+  EXPECT_NEAR(r.state.tools[0].force_n.norm(), 3.3, 1e-12);
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+TEST(ToolProxyTest, ProxySlidesAlongTheSurfaceTowardTheHandle) {
+  Sim r(BlockBoneModel());
+  r.Step(BurrAt(Vec3(-10, 0, 5)));
+  r.Step(BurrAt(Vec3(-10, 0, -2)));                                              // pressed 2 mm in
+  for (int i = 0; i < 5; ++i) r.Step(BurrAt(Vec3(-10 + 4.0 * (i + 1), 0, -2)));  // slid along x
+  const ToolState& t = r.state.tools[0];
+  EXPECT_NEAR(t.pose.position_mm.x(), 10.0, 1e-3);  // the slide converges toward it
+  EXPECT_NEAR(t.pose.position_mm.z(), 0.0, 0.01);
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+TEST(ToolProxyTest, HandleTeleportedThroughTheBoneDoesNotTunnel) {
+  Sim r(BlockBoneModel());
+  r.Step(BurrAt(Vec3(0, 0, 5)));
+  r.Step(BurrAt(Vec3(0, 0, -60)));  // below the block: the straight path crosses 40 mm of bone
+  EXPECT_GT(r.state.tools[0].pose.position_mm.z(), 0.0);
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+TEST(ToolProxyTest, InstrumentInsertedInsideBoneStartsAtItsPortal) {
+  Sim r(BlockBoneModel());
+  r.Step(BurrAt(Vec3(0, 0, -10)));
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+  EXPECT_GT(r.state.tools[0].pose.position_mm.z(), 0.0);
+}
+
+TEST(ToolProxyTest, ScenarioKeysAreReadAndChecked) {
+  const std::string base = "name: h\nmaterials: {}\nbodies: []\n";
+  const Model m =
+      io::LoadScenarioFromText(base +
+                                   "haptics: {proxy: false, coupling_stiffness_n_per_mm: 0.5, "
+                                   "coupling_damping_n_s_per_mm: 0.001, max_force_n: 3.3}\n",
+                               "h.yaml");
+  EXPECT_FALSE(m.haptics.proxy);
+  EXPECT_EQ(m.haptics.coupling_stiffness_n_per_mm, 0.5);
+  EXPECT_EQ(m.haptics.coupling_damping_n_s_per_mm, 0.001);
+  EXPECT_EQ(m.haptics.max_force_n, 3.3);
+  try {
+    io::LoadScenarioFromText(base + "haptics: {max_force_n: -1}\n", "h.yaml");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("haptics.max_force_n"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("h.yaml:4"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace arthrosim::sim
+
+namespace arthrosim::sim {
+namespace {
+
+Model Shoulder(bool proxy = true) {
+  Model m =
+      io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/rotator_cuff_repair.yaml");
+  m.haptics.proxy = proxy;
+  return m;
+}
+
+// Largest displacement of any node of `body` from its rest position, mm, and the smallest
+// signed distance of those nodes from the bones (mm, < 0 inside).
+struct TissueFigures {
+  double max_displacement_mm = 0;
+  double min_bone_distance_mm = 1e300;
+};
+TissueFigures Tissue(const Model& m, const State& s, int body) {
+  TissueFigures f;
+  collision::BoneQueryWorld bones;
+  collision::SyncBoneQuery(s, &bones);
+  const Points& x = s.soft_bodies[static_cast<std::size_t>(body)].x;
+  const Points& x0 = m.soft_bodies[static_cast<std::size_t>(body)].rest_mesh.nodes;
+  for (Eigen::Index i = 0; i < x0.cols(); ++i) {
+    f.max_displacement_mm = std::max(f.max_displacement_mm, (x.col(i) - x0.col(i)).norm());
+    f.min_bone_distance_mm =
+        std::min(f.min_bone_distance_mm, collision::PointBoneSignedDistance(x.col(i), &bones));
+  }
+  return f;
+}
+
+}  // namespace
+}  // namespace arthrosim::sim
+
+namespace arthrosim::sim {
+namespace {
+
+// The abusive replay of trajectories/abusive_sweep.yaml (a grasper swept at 0.5 m/s through the
+// head and the cuff), `steps` steps or to its end (steps < 0).
+struct SweepResult {
+  State state;
+  int steps = 0;
+  double min_tool_clearance_mm = 1e300;
+  double max_force_n = 0;
+  int max_cg_iterations = 0;
+  int refactors = 0;
+  double max_tissue_displacement_mm = 0;
+  int proxy_apart_steps = 0;  ///< steps ending with the proxy away from its handle
+};
+SweepResult Sweep(const Model& m, int steps, bool measure = true) {
+  input::SourceOptions options;
+  options.dt_s = m.options.dt_s;
+  auto source = input::OpenInputSource(
+      std::string(ARTHROSIM_SOURCE_DIR) + "/trajectories/abusive_sweep.yaml", m, options);
+  Sim r(m);
+  SweepResult out;
+  InputFrame f;
+  for (int k = 0; steps < 0 || k < steps; ++k) {
+    const double t = static_cast<double>(r.state.step + 1) * m.options.dt_s;
+    if (source->Finished(t)) break;
+    source->Frame(r.state.step + 1, t, &f);
+    r.Step(f);
+    source->Feedback(Feedback(r.state));
+    ++out.steps;
+    out.proxy_apart_steps += r.state.tools[0].pose == r.state.tools[0].handle_pose ? 0 : 1;
+    if (!measure) continue;
+    out.min_tool_clearance_mm =
+        std::min(out.min_tool_clearance_mm, ExactClearance(r.model, r.state, 0));
+    out.max_force_n = std::max(out.max_force_n, r.state.tools[0].force_n.norm());
+    out.max_cg_iterations = std::max(out.max_cg_iterations, r.ws.timings.soft.cg_iterations);
+    out.refactors += r.ws.timings.soft.refactored ? 1 : 0;
+  }
+  if (measure) {
+    for (int b = 0; b < static_cast<int>(m.soft_bodies.size()); ++b) {
+      out.max_tissue_displacement_mm =
+          std::max(out.max_tissue_displacement_mm, Tissue(m, r.state, b).max_displacement_mm);
+    }
+  }
+  out.state = r.state;
+  return out;
+}
+
+TEST(ToolProxyTest, AbusiveSweepKeepsTheToolOutOfBoneAndTheForceClamped) {
+  const Model m = Shoulder();
+  const SweepResult s = Sweep(m, 100);
+  std::printf(
+      "abusive sweep: %d steps, tool clearance %.3f mm, max force %.3f N, max tissue "
+      "displacement %.3f mm, CG max %d it, %d refactors\n",
+      s.steps, s.min_tool_clearance_mm, s.max_force_n, s.max_tissue_displacement_mm,
+      s.max_cg_iterations, s.refactors);
+  EXPECT_EQ(s.steps, 100);
+  EXPECT_GE(s.min_tool_clearance_mm, -0.1);
+  EXPECT_LE(s.max_force_n, m.haptics.max_force_n + 1e-9);
+}
+
+TEST(ToolProxyTest, AbusiveSweepWithoutTheProxyEntersBone) {
+  const SweepResult s = Sweep(Shoulder(false), 100);
+  std::printf("abusive sweep, no proxy: tool clearance %.3f mm, max tissue displacement %.3f mm\n",
+              s.min_tool_clearance_mm, s.max_tissue_displacement_mm);
+  EXPECT_LT(s.min_tool_clearance_mm, -0.1);
+}
+
+TEST(ToolProxyTest, AbusiveSweepIsBitIdenticalForOneAndTwoThreads) {
+  const Model m = Shoulder();
+  SetThreadCount(1);
+  const SweepResult a = Sweep(m, 100, false);
+  SetThreadCount(2);
+  const SweepResult b = Sweep(m, 100, false);
+  SetThreadCount(1);
+  EXPECT_TRUE(BitwiseEqual(a.state, b.state));
+  EXPECT_EQ(HashState(a.state), HashState(b.state));
+  EXPECT_GT(a.proxy_apart_steps, 0);  // the proxy did act
+}
+
+}  // namespace
+}  // namespace arthrosim::sim
