@@ -163,7 +163,8 @@ TEST(Burr, RemovalRateFollowsHardnessAndSimulatedTimeNotStepCount) {
     double lowest = kTop;  // under the burr (not the box's bottom face)
     const mesh::TriMesh& surf = r.state.bones[0].surface;
     for (int i = 0; i < surf.nodes.cols(); ++i) {
-      if (surf.nodes(2, i) > kTop - 3) lowest = std::min(lowest, surf.nodes(2, i));
+      const Vec3 p = surf.nodes.col(i);
+      if ((p - Vec3(55, 15, kTop)).norm() < 3) lowest = std::min(lowest, p.z());
     }
     return kTop - lowest;
   };
@@ -316,7 +317,8 @@ TEST(Awl, MethodOneDisplacesTheContactVertexWithItsNeighbours) {
   const mesh::TriMesh& surf = s.bones[0].surface;
   int down = 0;
   for (int i = 0; i < surf.nodes.cols(); ++i) {
-    if (std::abs(surf.nodes(2, i) - (kTop - 2.0)) < 1e-9) ++down;
+    const Vec3 p = surf.nodes.col(i);
+    if (std::abs(p.z() - (kTop - 2.0)) < 1e-9 && (p - Vec3(54, 16, p.z())).norm() < 4) ++down;
   }
   EXPECT_EQ(down, 7);
   EXPECT_TRUE(physics::CheckWatertight(surf).ok());
