@@ -58,7 +58,10 @@ int StartHole(const Model& model, int slot, const AwlFrame& f, State* state) {
     const BoneTouch touch = TouchBone(state->bones[b].surface, back, back, f.radius_mm);
     if (touch.triangles == 0) continue;
     const Vec3 d = touch.center_mm - back;
-    if (!(d.norm() > 1e-9)) continue;
+    // The rounded tip must still be outside the surface by at least half a radius: nearer, the
+    // contact centre lies almost beside it and the direction to it says nothing (a tool
+    // sliding along the surface would open a hole along it).
+    if (!(-d.dot(touch.normal) >= 0.5 * f.radius_mm)) continue;
     const double cos_dev = std::clamp(f.axis.dot(d.normalized()), -1.0, 1.0);
     if (std::acos(cos_dev) > model.operations.awl.max_angle_deg * units::kDegToRad) continue;
     const double un = f.axis.dot(touch.normal);
