@@ -6,6 +6,7 @@
 #include "arthrosim/instruments/cutting.h"
 #include "arthrosim/instruments/soft_shaving.h"
 #include "operations.h"
+#include "suture_ops.h"
 
 namespace arthrosim::instruments {
 namespace {
@@ -13,17 +14,17 @@ namespace {
 // One entry per InstrumentKind, in enum order; nullptr = contact only (no operation yet or
 // none by design). Each operation lives in its own file and is declared in operations.h.
 constexpr std::array<Operation, kInstrumentKindCount> kOperations = {
-    &ScissorsCut,    // kScissors
-    &ThreadCutter,   // kCutter
-    &BurrOperation,  // kBurr
-    &ShaverShave,    // kShaver
-    &CauteryShave,   // kElectrocautery
-    &AwlOperation,   // kAwl
-    nullptr,         // kRetriever
-    nullptr,         // kGrasper
-    nullptr,         // kScorpionNeedle
-    nullptr,         // kKnotPusher
-    nullptr,         // kHook
+    &ScissorsCut,              // kScissors
+    &ThreadCutter,             // kCutter
+    &BurrOperation,            // kBurr
+    &ShaverShave,              // kShaver
+    &CauteryShave,             // kElectrocautery
+    &AwlOperation,             // kAwl
+    &RetrieverOperation,       // kRetriever
+    &GrasperOperation,         // kGrasper
+    &ScorpionNeedleOperation,  // kScorpionNeedle
+    nullptr,                   // kKnotPusher
+    nullptr,                   // kHook
 };
 
 }  // namespace

@@ -104,14 +104,39 @@ void ReadAnchor(const YamlSection& ops, const Model& m, AnchorOptions* o) {
   }
 }
 
+// Grasper and retriever (docs/operations.md "Grasping").
+void ReadGrasp(const YamlSection& ops, const char* name, GraspOptions* o) {
+  if (!ops.Has(name)) return;
+  const YamlSection s(ops.reader(), ops.Get(name), ops.Field(name),
+                      {"dist_limit", "jaw_closed", "stiffness"});
+  o->dist_limit_mm = s.Positive("dist_limit", o->dist_limit_mm);
+  o->jaw_closed = InRange(s, "jaw_closed", o->jaw_closed, 0.01, 1, "in [0.01, 1]");
+  o->stiffness_n_per_mm = s.Positive("stiffness", o->stiffness_n_per_mm);
+}
+
+// Scorpion needle (docs/operations.md "Suturing").
+void ReadScorpionNeedle(const YamlSection& ops, ScorpionNeedleOptions* o) {
+  if (!ops.Has("scorpion_needle")) return;
+  const YamlSection s(ops.reader(), ops.Get("scorpion_needle"), ops.Field("scorpion_needle"),
+                      {"dist_limit_1", "dist_limit_2", "node_spacing", "nodes_through",
+                       "tissue_stiffness", "thread_stiffness", "stitch_stiffness"});
+  o->dist_limit_1_mm = s.Positive("dist_limit_1", o->dist_limit_1_mm);
+  o->dist_limit_2_mm = s.Positive("dist_limit_2", o->dist_limit_2_mm);
+  o->node_spacing_mm = s.Positive("node_spacing", o->node_spacing_mm);
+  o->nodes_through = static_cast<int>(s.Integer("nodes_through", o->nodes_through, 1));
+  o->tissue_stiffness_n_per_mm = s.Positive("tissue_stiffness", o->tissue_stiffness_n_per_mm);
+  o->thread_stiffness_n_per_mm = s.Positive("thread_stiffness", o->thread_stiffness_n_per_mm);
+  o->stitch_stiffness_n_per_mm = s.Positive("stitch_stiffness", o->stitch_stiffness_n_per_mm);
+}
+
 }  // namespace
 
 void ReadOperations(const YamlSection& root, Model* m) {
   if (!root.Has("operations")) return;
   OperationOptions& o = m->operations;
-  const YamlSection ops(
-      root.reader(), root.Get("operations"), "operations",
-      {"scissors", "cutter", "shaver", "electrocautery", "burr", "awl", "anchor"});
+  const YamlSection ops(root.reader(), root.Get("operations"), "operations",
+                        {"scissors", "cutter", "shaver", "electrocautery", "burr", "awl", "anchor",
+                         "grasper", "retriever", "scorpion_needle"});
   ReadScissors(ops, &o.scissors);
   ReadCutter(ops, &o.cutter);
   ReadSoftShaving(ops, "shaver", &o.shaver);
@@ -119,6 +144,9 @@ void ReadOperations(const YamlSection& root, Model* m) {
   ReadBurr(ops, &o.burr);
   ReadAwl(ops, &o.awl);
   ReadAnchor(ops, *m, &o.anchor);
+  ReadGrasp(ops, "grasper", &o.grasper);
+  ReadGrasp(ops, "retriever", &o.retriever);
+  ReadScorpionNeedle(ops, &o.scorpion_needle);
 }
 
 }  // namespace arthrosim::io

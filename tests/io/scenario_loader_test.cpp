@@ -117,6 +117,26 @@ TEST_F(ScenarioLoaderTest, UnknownKeyNamesFileLineAndField) {
   EXPECT_EQ(e.field(), "sede");
 }
 
+TEST_F(ScenarioLoaderTest, OperationsThresholdsAreCheckedKeys) {
+  const Model m =
+      LoadScenarioFromText(Edit("seed: 7",
+                                "seed: 7\noperations: {grasper: {dist_limit: 3}, "
+                                "scorpion_needle: {dist_limit_1: 4, nodes_through: 4}}"),
+                           Path());
+  EXPECT_EQ(m.operations.grasper.dist_limit_mm, 3.0);
+  EXPECT_EQ(m.operations.retriever.dist_limit_mm, 2.0);  // the paper's 0.2 as mm
+  EXPECT_EQ(m.operations.scorpion_needle.dist_limit_1_mm, 4.0);
+  EXPECT_EQ(m.operations.scorpion_needle.dist_limit_2_mm, 2.0);
+  EXPECT_EQ(m.operations.scorpion_needle.nodes_through, 4);
+  const InputError typo =
+      LoadError(Edit("seed: 7", "seed: 7\noperations: {grasper: {dist_limt: 3}}"));
+  EXPECT_EQ(typo.field(), "operations.grasper.dist_limt");
+  EXPECT_EQ(typo.line(), 3);
+  const InputError negative =
+      LoadError(Edit("seed: 7", "seed: 7\noperations: {retriever: {dist_limit: -1}}"));
+  EXPECT_EQ(negative.field(), "operations.retriever.dist_limit");
+}
+
 TEST_F(ScenarioLoaderTest, NestedUnknownKeyIsAnError) {
   const InputError e = LoadError(Edit("rayleigh_mass: 0.1", "rayleigh_mas: 0.1"));
   EXPECT_EQ(e.field(), "materials.muscle.rayleigh_mas");

@@ -96,7 +96,7 @@ TEST(StepTest, ToolHeldConstraintPullsTheThreadAndFeedsBackItsForce) {
   Workspace ws;
   BuildWorkspace(m, s, &ws);
   SpringConstraint grasp;
-  grasp.tag = "grasp";
+  grasp.tag = "hold";  // not "grasp": the grasper operation would release it (jaw open)
   grasp.a.kind = ConstraintEnd::Kind::kTool;
   grasp.a.index = 0;
   grasp.b.kind = ConstraintEnd::Kind::kThread;

@@ -66,6 +66,25 @@ struct AnchorOptions {
   std::vector<std::string> sutures;    ///< threads whose node 0 the anchor carries
 };
 
+/// Grasper (tissue) and retriever (thread), Choi et al. 2020 section III.4: while the jaw is
+/// closed a spring holds the grasped point at the place in the tool frame where it was taken.
+struct GraspOptions {
+  double dist_limit_mm = 2.0;       ///< Dist_Limit: grasp reach, and the stretch that releases
+  double jaw_closed = 0.8;          ///< jaw value (0 open .. 1 closed) from which it grasps
+  double stiffness_n_per_mm = 5.0;  ///< grasp spring, N/mm
+};
+
+/// Scorpion needle, Choi et al. 2020 section III.5 (two buttons).
+struct ScorpionNeedleOptions {
+  double dist_limit_1_mm = 5.0;  ///< Dist_limit_1: reach to the thread node it ties to the tool
+  double dist_limit_2_mm = 2.0;  ///< Dist_limit_2: tissue grasp reach and releasing stretch
+  double node_spacing_mm = 1.0;  ///< spacing of the thread nodes laid out of the exit point
+  int nodes_through = 3;         ///< the node this many further sits at the exit (upper) point
+  double tissue_stiffness_n_per_mm = 5.0;  ///< tool-tissue grasp spring, N/mm
+  double thread_stiffness_n_per_mm = 5.0;  ///< tool-thread spring, N/mm
+  double stitch_stiffness_n_per_mm = 5.0;  ///< thread-tissue stitch springs, N/mm
+};
+
 /// Thresholds of the instrument operations (scenario section `operations:`; defaults documented
 /// in docs/operations.md, in mm and s). One sub-struct per operation.
 struct OperationOptions {
@@ -76,6 +95,9 @@ struct OperationOptions {
   BurrOptions burr;
   AwlOptions awl;
   AnchorOptions anchor;
+  GraspOptions grasper;
+  GraspOptions retriever;
+  ScorpionNeedleOptions scorpion_needle;
 };
 
 }  // namespace arthrosim

@@ -1,0 +1,188 @@
+// Scorpion needle on the slab scene: load the suture (button 1), take the tissue edge between
+// the jaws, pass (button 2); the thread nodes lie where the paper places them, stay attached as
+// the tendon moves 5 mm, the bite distance to `tendon_edge` is right, nothing diverges.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+#include "arthrosim/core/parallel.h"
+#include "arthrosim/physics/constraints.h"
+#include "suture_scene.h"
+
+namespace arthrosim::instruments {
+namespace {
+
+using testing::SlotDriver;
+
+// Horizontal, pointing -x (toward the slab from its free edge), upper jaw (side 0) up.
+Quat TowardMinusX() {
+  Mat3 r;
+  r.col(0) = Vec3(0, 0, 1);
+  r.col(1) = Vec3(0, 1, 0);
+  r.col(2) = Vec3(-1, 0, 0);
+  return Quat(r);
+}
+
+constexpr std::uint8_t kB1 = 1, kB2 = 2;
+
+double Detail(const Event& e, const std::string& key) {
+  const std::size_t at = e.detail.find(key + "=");
+  EXPECT_NE(at, std::string::npos) << key << " in " << e.detail;
+  return at == std::string::npos ? 0 : std::atof(e.detail.c_str() + at + key.size() + 1);
+}
+
+Vec3 DetailPoint(const Event& e, const std::string& key) {
+  const std::size_t at = e.detail.find(key + "=");
+  Vec3 p = Vec3::Zero();
+  if (at == std::string::npos) return p;
+  std::sscanf(e.detail.c_str() + at + key.size() + 1, "%lf,%lf,%lf", &p.x(), &p.y(), &p.z());
+  return p;
+}
+
+struct Pass {
+  std::vector<Event> events;  // thread_catch, grasp, suture_pass of the run, in order
+};
+
+// Loads the suture at thread node 27 (x = 33), carries it to the slab's free edge, closes the
+// jaws on the edge and passes. Returns the suture_pass event (kind empty if none).
+Event LoadAndPass(SlotDriver* d, Pass* log) {
+  d->frame.tools[0].pose.orientation = TowardMinusX();
+  const auto keep = [&] {
+    for (const Event& e : d->state->events)
+      if (e.kind == "thread_catch" || e.kind == "grasp" || e.kind == "suture_pass" ||
+          e.kind == "release")
+        log->events.push_back(e);
+  };
+  d->Step(Vec3(33, 10, 8), 0.0);
+  d->Step(Vec3(33, 10, 8), 0.0, kB1);  // catch the thread at the tip
+  keep();
+  for (int k = 1; k <= 12; ++k) d->Step(Vec3(33, 10, 8 - 0.5 * k), 0.0, kB1), keep();  // down
+  for (int k = 1; k <= 12; ++k) d->Step(Vec3(33 - 0.5 * k, 10, 2), 0.0, kB1), keep();  // in
+  for (int k = 1; k <= 5; ++k) d->Step(Vec3(27, 10, 2), 0.1 * k, kB1), keep();  // close on it
+  d->Step(Vec3(27, 10, 2), 0.5, kB1 | kB2);
+  keep();
+  for (const Event& e : d->state->events)
+    if (e.kind == "suture_pass") return e;
+  return Event{};
+}
+
+TEST(ScorpionNeedle, PassPlacesTheNodesAsThePaperSays) {
+  const Model m = testing::SlabModel();
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  const Event pass = LoadAndPass(&d, &log);
+  ASSERT_FALSE(log.events.empty());
+  EXPECT_EQ(log.events.front().kind, "thread_catch");
+  ASSERT_EQ(pass.kind, "suture_pass") << "events: " << log.events.size();
+  const int entry = static_cast<int>(Detail(pass, "entry_node"));
+  const int exit = static_cast<int>(Detail(pass, "exit_node"));
+  EXPECT_EQ(entry, 27);
+  ASSERT_GE(exit - entry, 3) << "at least the paper's third node";
+  const Vec3 entry_mm = DetailPoint(pass, "entry_mm"), exit_mm = DetailPoint(pass, "exit_mm");
+  // Entry on the bottom face, exit on the top face (triangle centres), the path through the slab.
+  EXPECT_NEAR(entry_mm.z(), 0.0, 0.5);
+  EXPECT_NEAR(exit_mm.z(), 4.0, 0.5);
+  const Points& x = s.threads[0].x;
+  EXPECT_LT((x.col(entry) - entry_mm).norm(), 1e-3);
+  EXPECT_LT((x.col(exit) - exit_mm).norm(), 1e-3);
+  // The rest at 1 mm intervals along the entry->exit direction, away from the tissue.
+  const Vec3 dir = (x.col(exit) - x.col(entry)).normalized();
+  EXPECT_GT(dir.dot((exit_mm - entry_mm).normalized()), 0.999);
+  for (int n = exit; n + 1 < x.cols(); ++n) {
+    const Vec3 seg = x.col(n + 1) - x.col(n);
+    EXPECT_NEAR(seg.norm(), 1.0, 1e-9) << "node " << n;
+    EXPECT_GT(seg.normalized().dot(dir), 1 - 1e-9) << "node " << n;
+  }
+  // One stitch spring per node inside the tissue, the tool no longer holds the thread.
+  EXPECT_EQ(physics::FindConstraintsByTag(s, "stitch").size(),
+            static_cast<std::size_t>(exit - entry + 1));
+  EXPECT_TRUE(physics::FindConstraintsByTag(s, "scorpion_thread").empty());
+}
+
+TEST(ScorpionNeedle, BiteDistanceIsTheDistanceToTheTendonEdge) {
+  const Model m = testing::SlabModel();  // stiff: the edge stays where it was at rest
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  const Event pass = LoadAndPass(&d, &log);
+  ASSERT_EQ(pass.kind, "suture_pass");
+  // The torn edge is the face x = 30 at rest; the tissue moved little, so the geometric
+  // distance is the entry point's distance to that plane.
+  const Vec3 entry_mm = DetailPoint(pass, "entry_mm");
+  EXPECT_NEAR(Detail(pass, "bite_to_edge_mm"), 30.0 - entry_mm.x(), 0.5);
+  EXPECT_GT(Detail(pass, "bite_to_edge_mm"), 1.0);
+}
+
+TEST(ScorpionNeedle, StitchesHoldAsTheTendonMovesAndNothingDiverges) {
+  // A firm grasp (50 N/mm, 5 mm reach) so the grasper can lift the stiff slab's end.
+  const Model m = testing::SlabModel("operations: {grasper: {stiffness: 50, dist_limit: 5}}\n");
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  ASSERT_EQ(LoadAndPass(&d, &log).kind, "suture_pass");
+  const std::vector<std::int64_t> stitches = physics::FindConstraintsByTag(s, "stitch");
+  ASSERT_FALSE(stitches.empty());
+  const Vec3 bite0 = physics::EndPosition(s, physics::FindConstraint(s, stitches[0])->b);
+  // The needle lets go and backs out; a grasper in slot 1 takes the tendon beside the bite
+  // and lifts it 5 mm.
+  d.Step(Vec3(27, 10, 2), 0.5, 0);
+  EXPECT_TRUE(physics::FindConstraintsByTag(s, "scorpion_tissue").empty());
+  for (int k = 1; k <= 10; ++k) d.Step(Vec3(27 + 1.5 * k, 10, 2), 0.0, 0);
+  ToolCommand& grasper = d.frame.tools[1];
+  grasper.instrument = m.FindInstrument("grasper");
+  grasper.pose.orientation = testing::Downward();
+  const Vec3 start(25, 10, 4.4);
+  for (int k = 0; k < 4; ++k) {
+    grasper.jaw = k < 3 ? 0.0 : 1.0;
+    grasper.pose.position_mm = start;
+    d.Step(Vec3(42, 10, 2), 0.0, 0);
+  }
+  ASSERT_EQ(physics::FindConstraintsByTag(s, "grasp").size(), 1u);
+  for (int k = 1; k <= 50; ++k) {
+    grasper.pose.position_mm = start + Vec3(0, 0, 0.2 * std::min(k, 25));
+    d.Step(Vec3(42, 10, 2), 0.0, 0);
+  }
+  ASSERT_EQ(physics::FindConstraintsByTag(s, "grasp").size(), 1u) << "still held";
+  const Vec3 bite1 = physics::EndPosition(s, physics::FindConstraint(s, stitches[0])->b);
+  EXPECT_GT(bite1.z() - bite0.z(), 4.0) << "the tendon at the bite moved with the grasper";
+  double worst_mm = 0;
+  for (const std::int64_t id : stitches) {
+    const SpringConstraint* c = physics::FindConstraint(s, id);
+    ASSERT_NE(c, nullptr);
+    worst_mm =
+        std::max(worst_mm, (physics::EndPosition(s, c->a) - physics::EndPosition(s, c->b)).norm());
+  }
+  EXPECT_LT(worst_mm, 1.0) << "thread nodes stay at their tissue points";
+  ASSERT_TRUE(s.threads[0].x.allFinite());
+  ASSERT_TRUE(s.soft_bodies[0].x.allFinite());
+  // Thread strain: no segment longer than 1 % over its rest length (1 mm).
+  const Points& x = s.threads[0].x;
+  double worst_strain = 0;
+  for (int n = 0; n + 1 < x.cols(); ++n)
+    worst_strain = std::max(worst_strain, (x.col(n + 1) - x.col(n)).norm() - 1.0);
+  EXPECT_LE(worst_strain, 0.01);
+}
+
+State SutureRun(const Model& m) {
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  LoadAndPass(&d, &log);
+  for (int k = 1; k <= 10; ++k) d.Step(Vec3(27, 10, 2 + 0.2 * k), 0.5, kB1);
+  return s;
+}
+
+TEST(ScorpionNeedle, BitIdenticalForOneAndTwoThreads) {
+  const Model m = testing::SlabModel();
+  SetThreadCount(1);
+  const State a = SutureRun(m);
+  SetThreadCount(2);
+  const State b = SutureRun(m);
+  SetThreadCount(1);
+  EXPECT_TRUE(BitwiseEqual(a, b));
+  EXPECT_FALSE(physics::FindConstraintsByTag(a, "stitch").empty());
+}
+
+}  // namespace
+}  // namespace arthrosim::instruments
