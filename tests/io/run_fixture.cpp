@@ -140,7 +140,8 @@ State MakeFrame(const Model& model, int f) {
   empty_soft(biceps);
   s.soft_bodies.push_back(std::move(biceps));
 
-  BoneState bone{.surface = BoneRest()};
+  BoneState bone;
+  bone.surface = BoneRest();
   if (f >= 4) {
     bone.surface.nodes.col(0) = Vec3(0.5, 0.5, -10.5);
     bone.removed_volume_mm3 = 0.25 * (fd - 3.0);

@@ -82,7 +82,8 @@ TEST(BoneSurface, BurrCapConvergesAndStaysClosed) {
   const double r = 3, exact = CapVolume(r, 2);
   double prev_err = 1e30;
   for (double h : {1.0, 0.5, 0.25}) {
-    BoneState bone{.surface = Cube(10)};
+    BoneState bone;
+    bone.surface = Cube(10);
     const double v0 = EnclosedVolume(bone.surface);
     BoneCarveOptions opt;
     opt.max_edge_mm = h;
@@ -105,7 +106,8 @@ TEST(BoneSurface, BurrCapConvergesAndStaysClosed) {
 }
 
 TEST(BoneSurface, MaxDepthLimitsAPass) {
-  BoneState bone{.surface = Cube(10)};
+  BoneState bone;
+  bone.surface = Cube(10);
   BoneCarveOptions opt;
   opt.max_edge_mm = 0.5;
   double total = 0;
@@ -133,7 +135,8 @@ TEST(BoneSurface, AwlParaboloidConverges) {
   const double radius = 2, depth = 3, exact = units::kPi * depth * radius * radius / 2;
   double prev_err = 1e30;
   for (double h : {0.8, 0.4, 0.2}) {
-    BoneState bone{.surface = Cube(10)};
+    BoneState bone;
+    bone.surface = Cube(10);
     BoneCarveOptions opt;
     opt.max_edge_mm = h;
     opt.rounds = 6;
@@ -151,7 +154,8 @@ TEST(BoneSurface, AwlParaboloidConverges) {
 }
 
 TEST(BoneSurface, CarvingASphereBoneKeepsItClosed) {
-  BoneState bone{.surface = Sphere(10, 4)};
+  BoneState bone;
+  bone.surface = Sphere(10, 4);
   const double v0 = EnclosedVolume(bone.surface);
   double total = 0;
   for (int k = 0; k < 5; ++k) total += CarveSphere(&bone, Vec3(0, 0, 11.5 - 0.5 * k), 2.5, 0.3);

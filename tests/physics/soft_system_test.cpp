@@ -243,7 +243,7 @@ TEST(SoftSystem, JoinedBodiesActAsOne) {
   split.soft_bodies.clear();
   for (int part = 0; part < 2; ++part) {
     SoftBodyModel body = whole.soft_bodies[0];
-    body.name = part == 0 ? "a" : "b";
+    body.name.assign(1, part == 0 ? 'a' : 'b');
     body.rest_mesh.tets.clear();
     for (const mesh::Tet& t : m.tets) {
       Vec3 c = Vec3::Zero();

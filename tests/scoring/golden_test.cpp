@@ -66,10 +66,11 @@ TEST(Golden, EverySceneMatchesItsGoldenFile) {
     ASSERT_TRUE(fs::exists(golden)) << golden << ": run tools/update-golden";
     EXPECT_LT(fs::file_size(golden), 3u << 20) << golden;
     const std::string run = name == "rotator_cuff_tour" ? TourRun() : Dir() + "/" + name + ".h5";
-    if (name != "rotator_cuff_tour")
+    if (name != "rotator_cuff_tour") {
       ASSERT_EQ(Shell(kBin + " run " + scenario + " --trajectory " + trajectory +
                       " --quiet --out " + run),
                 0);
+    }
     EXPECT_EQ(Shell(kBin + " compare " + run + " " + golden), 0)
         << name << " regressed (see " << Dir() << "/log.txt); after an intended change run "
         << "tools/update-golden";
