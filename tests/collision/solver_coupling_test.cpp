@@ -295,7 +295,7 @@ TEST(SolverCoupling, GraspedThreadDraggedAcrossAnotherNeverPassesThroughIt) {
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);
   SpringConstraint grasp;
-  grasp.tag = "grasp";
+  grasp.tag = "hold";  // a held end, not the grasper operation's "grasp" (released on jaw open)
   grasp.a.kind = ConstraintEnd::Kind::kTool;
   grasp.a.index = 0;
   grasp.b.kind = ConstraintEnd::Kind::kThread;

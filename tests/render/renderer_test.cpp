@@ -90,8 +90,9 @@ TEST(RendererTest, BlackOutsideFieldStopLitInside) {
   EXPECT_LT(centre_luma(img), 0.6 * near);
 }
 
-// Scope at the origin, nothing but a burr whose sphere (radius 3) lies 15 mm along `dir`, its
-// shaft pointing away behind it. Returns the pixels that differ from the empty view.
+// Scope at the origin, nothing but a burr whose tip point lies 15 mm along `dir`, pointing back
+// at the scope: its sphere (radius 3), whose front is the tip point, is centred 18 mm away and
+// its shaft points away behind it. Returns the pixels that differ from the empty view.
 struct Coverage {
   int count = 0;
   double cx = 0, cy_up = 0;  // centroid relative to the image centre, pixels (y up)
@@ -151,8 +152,8 @@ TEST(RendererTest, InstrumentOnViewAxisCoversTheExpectedDisc) {
   const double half = 105.0 / 2 * kPi / 180;
   const Vec3 view(0, std::sin(kPi / 6), std::cos(kPi / 6));
   const Coverage c = BurrCoverage(view, 0, 0, w, h, &radius);
-  // silhouette cone half-angle asin(3 / 15); rectilinear image radius tan(alpha) / tan(half)
-  const double alpha = std::asin(3.0 / 15.0);
+  // silhouette cone half-angle asin(3 / 18); rectilinear image radius tan(alpha) / tan(half)
+  const double alpha = std::asin(3.0 / 18.0);
   const double expect_px = radius * std::tan(alpha) / std::tan(half);
   ASSERT_GT(c.count, 0);
   EXPECT_NEAR(c.cx, 0, 0.5);
@@ -190,8 +191,8 @@ TEST(RendererTest, ObliqueLensShowsTheShaftAxisBelowCentre) {
   c = BurrCoverage(Vec3::UnitZ(), kPi, 0, w, h, &radius);
   EXPECT_NEAR(c.cx, 0, 1.0);
   EXPECT_NEAR(c.cy_up, expect, 3.0);
-  // at 30 mm the sphere spans +-5.7 deg: 60 deg off the view direction it is just outside the
-  // 105 deg field, 45 deg off it is inside
+  // centred at 33 mm the sphere spans +-5.2 deg: 60 deg off the view direction it is just outside
+  // the 105 deg field, 45 deg off it is inside
   c = BurrCoverage(Vec3(0, -std::sin(kPi / 6), std::cos(kPi / 6)), 0, 0, w, h, &radius, 30.0);
   EXPECT_EQ(c.count, 0);
   c = BurrCoverage(Vec3(0, std::sin(kPi / 12), std::cos(kPi / 12)), kPi / 2, 0, w, h, &radius,
