@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <functional>
-#include <map>
 #include <vector>
 
 namespace arthrosim::physics {
@@ -21,11 +20,30 @@ Vec3 TriNormal(const Points& x, const Tri& t) {
   return (x.col(t[1]) - x.col(t[0])).cross(x.col(t[2]) - x.col(t[0]));
 }
 
-// A region the tool can reach: a sphere (center, radius) bounding the tool shape.
+// A region the tool can reach: a sphere (center, radius) bounding the tool shape or, when `axis`
+// is a unit vector, the cylinder of that radius about the line through center along it, between
+// axial coordinates axial_lo and axial_hi. In the cylinder case lengths are measured across the
+// axis (see PushAlong).
 struct Region {
   Vec3 center = Vec3::Zero();
   double radius = 0;
+  Vec3 axis = Vec3::Zero();
+  double axial_lo = 0, axial_hi = 0;
 };
+
+// Whether the axial coordinate of p lies within the cylinder's extent widened by `reach`.
+bool WithinAxially(const Region& r, const Vec3& p, double reach) {
+  const double s = (p - r.center).dot(r.axis);
+  return s >= r.axial_lo - reach && s <= r.axial_hi + reach;
+}
+
+// v with its component along the region's axis removed (v itself for a sphere).
+Vec3 Across(const Region& r, const Vec3& v) { return v - v.dot(r.axis) * r.axis; }
+
+bool InRegion(const Region& r, const Vec3& p) {
+  if (r.axis.squaredNorm() == 0) return (p - r.center).norm() <= r.radius;
+  return WithinAxially(r, p, 0.0) && Across(r, p - r.center).norm() <= r.radius;
+}
 
 double PointSegmentDistance(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
@@ -35,6 +53,12 @@ double PointSegmentDistance(const Vec3& p, const Vec3& a, const Vec3& b) {
 }
 
 bool TriNearRegion(const Points& x, const Tri& t, const Region& r) {
+  if (r.axis.squaredNorm() > 0) {  // bounding sphere of the triangle against the cylinder
+    const Vec3 c = (x.col(t[0]) + x.col(t[1]) + x.col(t[2])) / 3.0;
+    double reach = 0;
+    for (int k = 0; k < 3; ++k) reach = std::max(reach, (x.col(t[k]) - c).norm());
+    return WithinAxially(r, c, reach) && Across(r, c - r.center).norm() <= r.radius + reach;
+  }
   Vec3 lo = x.col(t[0]), hi = x.col(t[0]);
   for (int k = 1; k < 3; ++k) {
     lo = lo.cwiseMin(x.col(t[k]));
@@ -44,35 +68,72 @@ bool TriNearRegion(const Points& x, const Tri& t, const Region& r) {
   return (closest - r.center).norm() <= r.radius;
 }
 
+// A directed edge (a, b) of triangle t, a at local index k.
+struct DirectedEdge {
+  int a, b, t, k;
+};
+
+bool EdgeLess(const DirectedEdge& x, const DirectedEdge& y) {
+  return x.a != y.a ? x.a < y.a : x.b < y.b;
+}
+
+// The directed edge (a, b) in the sorted list, or nullptr.
+const DirectedEdge* FindEdge(const std::vector<DirectedEdge>& sorted, int a, int b) {
+  const DirectedEdge key{a, b, 0, 0};
+  const auto it = std::lower_bound(sorted.begin(), sorted.end(), key, EdgeLess);
+  return it != sorted.end() && it->a == a && it->b == b ? &*it : nullptr;
+}
+
+// Whether triangle t is a sliver beside an edge of length edge_mm: its area (across the region's
+// axis for a cylinder) below 1e-3 of edge_mm squared.
+bool Sliver(const mesh::TriMesh& m, const Region& r, const Tri& t, double edge_mm) {
+  const Vec3 u = Across(r, m.nodes.col(t[1]) - m.nodes.col(t[0]));
+  const Vec3 v = Across(r, m.nodes.col(t[2]) - m.nodes.col(t[0]));
+  return 0.5 * u.cross(v).norm() < 1e-3 * edge_mm * edge_mm;
+}
+
 // Splits, longest first, every edge within the region longer than max_edge. Each pass splits an
-// independent set of edges (no triangle touched twice), then the adjacency is rebuilt.
+// independent set of edges (no triangle touched twice), then the adjacency is rebuilt. The
+// edges are a sorted vector (binary search) and the pass's midpoints are appended at its end:
+// the awl's deep holes split thousands of edges per call, and a node map or one resize per split
+// made that minutes.
 int SplitLongEdges(mesh::TriMesh* m, const Region& region, double max_edge,
                    std::vector<std::array<int, 2>>* parents) {
   int splits = 0;
+  std::vector<DirectedEdge> directed;
+  struct Candidate {
+    double length;
+    int a, b;
+  };
+  std::vector<Candidate> cand;
+  std::vector<Vec3> mids;
   // Each pass at least halves the longest candidate edge or splits an independent set, so the
   // loop ends; the bound only guards against a non-finite input.
   for (int pass = 0; pass < 100000; ++pass) {
-    // Directed edge (a, b) -> (triangle, local index of a).
-    std::map<std::array<int, 2>, std::array<int, 2>> directed;
-    std::vector<int> region_tris;
+    directed.clear();
     for (int t = 0; t < static_cast<int>(m->tris.size()); ++t) {
       if (!TriNearRegion(m->nodes, m->tris[t], region)) continue;
-      region_tris.push_back(t);
-      for (int k = 0; k < 3; ++k) directed[{m->tris[t][k], m->tris[t][(k + 1) % 3]}] = {t, k};
+      for (int k = 0; k < 3; ++k)
+        directed.push_back({m->tris[t][k], m->tris[t][(k + 1) % 3], t, k});
     }
-    struct Candidate {
-      double length;
-      int a, b;
-    };
-    std::vector<Candidate> cand;
-    for (const auto& [e, tk] : directed) {
-      if (e[0] > e[1]) continue;  // each undirected edge once
-      if (directed.find({e[1], e[0]}) == directed.end()) continue;
-      const Vec3 pa = m->nodes.col(e[0]), pb = m->nodes.col(e[1]);
-      const double len = (pb - pa).norm();
+    std::sort(directed.begin(), directed.end(), EdgeLess);
+    cand.clear();
+    for (const DirectedEdge& e : directed) {
+      if (e.a > e.b) continue;                                // each undirected edge once
+      if (FindEdge(directed, e.b, e.a) == nullptr) continue;  // an open edge
+      const Vec3 pa = m->nodes.col(e.a), pb = m->nodes.col(e.b);
+      const double len = Across(region, pb - pa).norm();
       if (len <= max_edge) continue;
-      if (PointSegmentDistance(region.center, pa, pb) > region.radius) continue;
-      cand.push_back({len, e[0], e[1]});
+      if (PointSegmentDistance(Vec3::Zero(), Across(region, pa - region.center),
+                               Across(region, pb - region.center)) > region.radius)
+        continue;
+      if (region.axis.squaredNorm() > 0 && !InRegion(region, pa) && !InRegion(region, pb)) continue;
+      // A sliver (opposite vertex on the edge's line, as measured) is left alone: halving its
+      // edge makes two slivers with an edge as long, and the passes would never end.
+      const DirectedEdge* twin = FindEdge(directed, e.b, e.a);
+      if (Sliver(*m, region, m->tris[e.t], len) || Sliver(*m, region, m->tris[twin->t], len))
+        continue;
+      cand.push_back({len, e.a, e.b});
     }
     if (cand.empty()) break;
     std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
@@ -81,26 +142,30 @@ int SplitLongEdges(mesh::TriMesh* m, const Region& region, double max_edge,
       return x.b < y.b;
     });
     std::vector<std::uint8_t> touched(m->tris.size(), 0);
+    const int first_mid = static_cast<int>(m->nodes.cols());
+    mids.clear();
     for (const Candidate& c : cand) {
-      const std::array<int, 2> t1k = directed.at({c.a, c.b});
-      const std::array<int, 2> t2k = directed.at({c.b, c.a});
-      if (touched[t1k[0]] || touched[t2k[0]]) continue;
-      touched[t1k[0]] = touched[t2k[0]] = 1;
-      const int mid = static_cast<int>(m->nodes.cols());
-      m->nodes.conservativeResize(3, mid + 1);
-      m->nodes.col(mid) = 0.5 * (m->nodes.col(c.a) + m->nodes.col(c.b));
+      const DirectedEdge& e1 = *FindEdge(directed, c.a, c.b);
+      const DirectedEdge& e2 = *FindEdge(directed, c.b, c.a);
+      if (touched[e1.t] || touched[e2.t]) continue;
+      touched[e1.t] = touched[e2.t] = 1;
+      const int mid = first_mid + static_cast<int>(mids.size());
+      mids.push_back(0.5 * (m->nodes.col(c.a) + m->nodes.col(c.b)));
       parents->push_back({c.a, c.b});
       // (a, b, c) -> (a, m, c) + (m, b, c); (b, a, d) -> (b, m, d) + (m, a, d).
-      const Tri t1 = m->tris[t1k[0]], t2 = m->tris[t2k[0]];
-      const int opp1 = t1[(t1k[1] + 2) % 3], opp2 = t2[(t2k[1] + 2) % 3];
-      m->tris[t1k[0]] = {c.a, mid, opp1};
+      const Tri t1 = m->tris[e1.t], t2 = m->tris[e2.t];
+      const int opp1 = t1[(e1.k + 2) % 3], opp2 = t2[(e2.k + 2) % 3];
+      m->tris[e1.t] = {c.a, mid, opp1};
       m->tris.push_back({mid, c.b, opp1});
-      m->tris[t2k[0]] = {c.b, mid, opp2};
+      m->tris[e2.t] = {c.b, mid, opp2};
       m->tris.push_back({mid, c.a, opp2});
       touched.push_back(1);
       touched.push_back(1);
       ++splits;
     }
+    m->nodes.conservativeResize(3, first_mid + static_cast<int>(mids.size()));
+    for (std::size_t i = 0; i < mids.size(); ++i)
+      m->nodes.col(first_mid + static_cast<int>(i)) = mids[i];
   }
   return splits;
 }
@@ -135,7 +200,7 @@ double Reshape(BoneState* bone, const Region& region, double max_move,
     std::vector<std::uint8_t> moved(n, 0);
     bool any = false;
     for (int i = 0; i < n; ++i) {
-      if ((old.col(i) - region.center).norm() > region.radius) continue;
+      if (!InRegion(region, old.col(i))) continue;
       Vec3 q;
       if (!target(old.col(i), &q)) continue;
       const Vec3 d = q - old.col(i);
@@ -297,9 +362,11 @@ double PushAlong(BoneState* bone, const Vec3& tip, const Vec3& axis, double radi
                  double depth_mm, const BoneCarveOptions& options) {
   if (!(radius_mm > 0) || !(depth_mm > 0) || !(axis.norm() > 0)) return 0.0;
   const Vec3 u = axis.normalized();
-  const Vec3 c = tip + 0.5 * (depth_mm - radius_mm) * u;
-  const double half = 0.5 * (depth_mm + radius_mm);
-  const Region region{c, std::sqrt(half * half + radius_mm * radius_mm) + options.max_edge_mm};
+  // Vertices move along u only, so the mesh is refined across u alone (edge lengths projected
+  // on the plane normal to u): once the disc under the awl is refined, deepening the hole splits
+  // nothing more. Refining in 3-D re-split the stretched hole wall at every deeper push and
+  // grew slivers without bound (25 000 triangles and seconds per step for a 6 mm hole).
+  const Region region{tip, radius_mm + options.max_edge_mm, u, -radius_mm, depth_mm};
   auto target = [&](const Vec3& p, Vec3* q) {
     const Vec3 d = p - tip;
     const double s = d.dot(u);
