@@ -20,15 +20,17 @@ namespace arthrosim::instruments {
 namespace {
 
 struct AwlFrame {
-  Vec3 tip = Vec3::Zero();    // tool tip, mm
-  Vec3 axis = Vec3::UnitZ();  // tool direction (into the bone), unit
-  double radius_mm = 0;       // awl body radius: the hole radius
+  Vec3 tip = Vec3::Zero();     // tool tip (the proxy, held at the bone surface), mm
+  Vec3 driven = Vec3::Zero();  // tip driven on along its axis by the hand's press (the mallet)
+  Vec3 axis = Vec3::UnitZ();   // tool direction (into the bone), unit
+  double radius_mm = 0;        // awl body radius: the hole radius
 };
 
 AwlFrame Frame(const Model& model, const ToolState& tool) {
   AwlFrame f;
   f.tip = tool.pose.position_mm;
   f.axis = (tool.pose.orientation * Vec3::UnitZ()).normalized();
+  f.driven = f.tip + std::max(0.0, PressMm(tool).dot(f.axis)) * f.axis;
   const InstrumentParts parts =
       InstrumentPartsLocal(model.instruments[static_cast<std::size_t>(tool.instrument)], tool.jaw);
   for (int i = 0; i < parts.count; ++i) {
@@ -55,7 +57,9 @@ int StartHole(const Model& model, int slot, const AwlFrame& f, State* state) {
   }
   const Vec3 back = f.tip - f.radius_mm * f.axis;
   for (std::size_t b = 0; b < model.bones.size(); ++b) {
-    const BoneTouch touch = TouchBone(state->bones[b].surface, back, back, f.radius_mm);
+    // Within the contact gap the proxy keeps from bone: the proxy's tip touches.
+    const BoneTouch touch = TouchBone(state->bones[b].surface, back, back,
+                                      f.radius_mm + model.contact.contact_distance_mm);
     if (touch.triangles == 0) continue;
     const Vec3 d = touch.center_mm - back;
     // The rounded tip must still be outside the surface by at least half a radius: nearer, the
@@ -64,13 +68,19 @@ int StartHole(const Model& model, int slot, const AwlFrame& f, State* state) {
     if (!(-d.dot(touch.normal) >= 0.5 * f.radius_mm)) continue;
     const double cos_dev = std::clamp(f.axis.dot(d.normalized()), -1.0, 1.0);
     if (std::acos(cos_dev) > model.operations.awl.max_angle_deg * units::kDegToRad) continue;
-    const double un = f.axis.dot(touch.normal);
+    // The surface plane at the entry: the normal over the hole's footprint (the triangles within
+    // the awl diameter of the contact centre), not the one or two facets under the tip, which
+    // on a faceted humeral head tilt it by several degrees.
+    const BoneTouch patch =
+        TouchBone(state->bones[b].surface, touch.center_mm, touch.center_mm, 2 * f.radius_mm);
+    const Vec3 normal = patch.triangles > 0 ? patch.normal : touch.normal;
+    const double un = f.axis.dot(normal);
     if (!(un < 0)) continue;  // the axis must point into the bone
     BoneHole h;
     h.bone = static_cast<std::int32_t>(b);
     h.tool_slot = slot;
     // The axis meets the local surface plane (contact centre, normal) at the entry.
-    h.entry_mm = back + ((touch.center_mm - back).dot(touch.normal) / un) * f.axis;
+    h.entry_mm = back + ((touch.center_mm - back).dot(normal) / un) * f.axis;
     h.axis = f.axis;
     h.diameter_mm = 2 * f.radius_mm;
     h.angle_deg = std::asin(std::min(1.0, -un)) / units::kDegToRad;
@@ -145,11 +155,16 @@ std::string HoleDetail(int index, const BoneHole& h) {
   return buf;
 }
 
-// Ends the hole the awl leaves: recorded by a `hole` event once deep enough.
+// Ends the hole the awl leaves: recorded by a `hole` event once deep enough. A hole that never
+// got that deep (the tip only touched, or slid off) is forgotten when it is the last record,
+// which it is unless another slot opened one since (anchors refer to holes by index).
 void CloseHole(const Model& model, int slot, int index, State* state) {
   BoneHole& h = state->holes[static_cast<std::size_t>(index)];
   h.open = 0;
-  if (h.depth_mm < model.operations.awl.min_depth_mm) return;
+  if (h.depth_mm < model.operations.awl.min_depth_mm) {
+    if (static_cast<std::size_t>(index) + 1 == state->holes.size()) state->holes.pop_back();
+    return;
+  }
   RecordEvent(model, slot, "hole", model.bones[static_cast<std::size_t>(h.bone)].name,
               HoleDetail(index, h), h.entry_mm, state);
 }
@@ -163,10 +178,11 @@ void AwlOperation(const Model& model, int slot, const StepContext& /*context*/, 
   if (!(f.radius_mm > 0)) return;
   int index = OpenHole(*state, slot);
   if (Button2(tool)) {  // seat an anchor in the hole at the tip, if there is one
-    const int hole = HoleForAnchor(model, f.tip, *state);
+    const int hole = HoleForAnchor(model, f.driven, *state);
     if (hole >= 0) {
       if (hole == index) CloseHole(model, slot, index, state);
-      SeatAnchor(model, slot, hole, state);
+      if (static_cast<std::size_t>(hole) < state->holes.size())
+        SeatAnchor(model, slot, hole, state);
       return;
     }
   }
@@ -175,7 +191,7 @@ void AwlOperation(const Model& model, int slot, const StepContext& /*context*/, 
     if (index < 0) return;
   }
   BoneHole& h = state->holes[static_cast<std::size_t>(index)];
-  const Vec3 d = f.tip - h.entry_mm;
+  const Vec3 d = f.driven - h.entry_mm;
   const double push_mm = d.dot(h.axis);  // how far the mallet drove the tip past the entry
   const double off_axis_mm = (d - push_mm * h.axis).norm();
   if (push_mm < -f.radius_mm || off_axis_mm > f.radius_mm) {  // the awl has left the hole

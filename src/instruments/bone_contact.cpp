@@ -7,6 +7,8 @@
 
 namespace arthrosim::instruments {
 
+Vec3 PressMm(const ToolState& tool) { return tool.handle_pose.position_mm - tool.pose.position_mm; }
+
 BoneTouch TouchBone(const mesh::TriMesh& surface, const Vec3& a, const Vec3& b, double radius_mm) {
   BoneTouch out;
   const Vec3 lo = a.cwiseMin(b) - Vec3::Constant(radius_mm);

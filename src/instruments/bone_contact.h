@@ -13,6 +13,13 @@ struct BoneTouch {
   double deepest_mm = 0;          ///< max(radius - distance) over them, mm (>= 0)
 };
 
+/// How far the hand presses the tool into what holds its proxy: handle tip minus proxy tip, mm
+/// (zero when the proxy is off or free, since the tool then is where the hand is). Burr and awl
+/// act at the proxy advanced along this press: the proxy stops at the bone surface, and the bone
+/// gives way only as far as the operation removes it (the issue's "advance only as far as
+/// material is removed").
+Vec3 PressMm(const ToolState& tool);
+
 /// Closest points of the surface to segment (a, b) (a == b: a point) within radius_mm.
 BoneTouch TouchBone(const mesh::TriMesh& surface, const Vec3& a, const Vec3& b, double radius_mm);
 

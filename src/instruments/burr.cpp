@@ -1,6 +1,7 @@
 // Burr (Choi et al. 2020, section III.2): while button 1 is held and the burr head touches a
 // bone, the bone within the burr radius is removed at a rate set by the bone's hardness and the
 // burr speed, integrated over simulated time; the rim of the crater is then smoothed.
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -60,17 +61,25 @@ void BurrOperation(const Model& model, int slot, const StepContext& /*context*/,
   double radius = 0;
   if (!BurrHead(model, tool, &center, &radius)) return;
   const BurrOptions& opt = model.operations.burr;
+  // The proxy holds the head at the bone surface (a contact gap away); the hand's press carries
+  // it across that gap and as deep as this step removes.
+  const Vec3 press = PressMm(tool);
+  const double press_mm = press.norm();
+  const double gap_mm = model.contact.contact_distance_mm;
   for (std::size_t b = 0; b < model.bones.size(); ++b) {
     BoneState& bone = state->bones[b];
-    const BoneTouch touch = TouchBone(bone.surface, center, center, radius);
-    if (touch.triangles == 0) continue;
     // Surface recession this step: rate x speed / hardness, integrated over the step.
     const double depth_mm =
         opt.depth_rate_mm_s * opt.speed / model.bones[b].hardness * model.options.dt_s;
+    const Vec3 at = press_mm > 0
+                        ? Vec3(center + press * (std::min(press_mm, gap_mm + depth_mm) / press_mm))
+                        : center;
+    const BoneTouch touch = TouchBone(bone.surface, at, at, radius);
+    if (touch.triangles == 0) continue;
     physics::BoneCarveOptions carve;
     carve.max_edge_mm = opt.max_edge_mm;
-    double removed = physics::CarveSphere(&bone, center, radius, depth_mm, carve);
-    removed += physics::SmoothRim(&bone, center, radius, radius + opt.smoothing_ring_mm);
+    double removed = physics::CarveSphere(&bone, at, radius, depth_mm, carve);
+    removed += physics::SmoothRim(&bone, at, radius, radius + opt.smoothing_ring_mm);
     if (removed <= 0) continue;
     BookByRegion(model, static_cast<int>(b), touch.center_mm, removed, &bone);
     RecordEvent(model, slot, "burr", model.bones[b].name,
