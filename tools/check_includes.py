@@ -31,10 +31,7 @@ ALLOWED = {
 }
 
 # Known violations still to be removed, as (file, included subsystem). Keep this empty.
-EXCEPTIONS = {
-    ("include/arthrosim/core/model.h", "mesh"),
-    ("include/arthrosim/core/state.h", "mesh"),
-}
+EXCEPTIONS = set()
 
 INCLUDE = re.compile(r'^\s*#\s*include\s*"arthrosim/([a-z_]+)/')
 

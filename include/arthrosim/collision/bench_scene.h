@@ -7,7 +7,7 @@
 
 #include "arthrosim/collision/contact_generation.h"
 #include "arthrosim/core/model.h"
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::collision {
 

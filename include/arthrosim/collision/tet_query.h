@@ -10,7 +10,7 @@
 
 #include "arthrosim/collision/collision_mesh.h"
 #include "arthrosim/core/types.h"
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::collision {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "arthrosim/core/types.h"
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim {
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::mesh {
 

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::mesh {
 
@@ -34,7 +34,7 @@ struct TriQualityReport {
   double enclosed_volume = 0;          ///< mm^3 after any flip (meaningful if closed)
 };
 
-/// Signed volume of tet t (mm^3), positive for the orientation documented in tet_mesh.h.
+/// Signed volume of tet t (mm^3), positive for the orientation documented in core/mesh_types.h.
 double TetSignedVolume(const Points& nodes, const Tet& t);
 /// Sum of signed tet volumes (mm^3), in tet order.
 double TotalVolume(const TetMesh& m);

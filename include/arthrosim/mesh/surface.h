@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::mesh {
 

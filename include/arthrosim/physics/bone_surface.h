@@ -16,7 +16,7 @@
 // triangle (vertices never pass through each other locally), and repeats (1)-(3) a few rounds so
 // chord midpoints left inside the tool are carved too. It returns V_before - V_after.
 #include "arthrosim/core/state.h"
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim::physics {
 

@@ -8,7 +8,7 @@
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
-#include "arthrosim/mesh/tet_mesh.h"
+#include "arthrosim/core/mesh_types.h"
 #include "arthrosim/physics/soft_system.h"
 
 namespace arthrosim::physics {

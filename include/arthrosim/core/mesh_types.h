@@ -1,5 +1,6 @@
 #pragma once
-// Plain mesh containers. Coordinates in millimetres; indices 0-based.
+// Plain mesh containers, in core because Model and State hold them (the mesh subsystem reads and
+// writes them). Coordinates in millimetres; indices 0-based.
 #include <array>
 #include <cstdint>
 #include <string>
