@@ -40,6 +40,13 @@ bool WithinAxially(const Region& r, const Vec3& p, double reach) {
 // v with its component along the region's axis removed (v itself for a sphere).
 Vec3 Across(const Region& r, const Vec3& v) { return v - v.dot(r.axis) * r.axis; }
 
+// Whether segment (a, b) reaches the cylinder's axial extent (always, for a sphere).
+bool AxiallyOverlaps(const Region& r, const Vec3& a, const Vec3& b) {
+  if (r.axis.squaredNorm() == 0) return true;
+  const double sa = (a - r.center).dot(r.axis), sb = (b - r.center).dot(r.axis);
+  return std::max(sa, sb) >= r.axial_lo && std::min(sa, sb) <= r.axial_hi;
+}
+
 bool InRegion(const Region& r, const Vec3& p) {
   if (r.axis.squaredNorm() == 0) return (p - r.center).norm() <= r.radius;
   return WithinAxially(r, p, 0.0) && Across(r, p - r.center).norm() <= r.radius;
@@ -127,7 +134,7 @@ int SplitLongEdges(mesh::TriMesh* m, const Region& region, double max_edge,
       if (PointSegmentDistance(Vec3::Zero(), Across(region, pa - region.center),
                                Across(region, pb - region.center)) > region.radius)
         continue;
-      if (region.axis.squaredNorm() > 0 && !InRegion(region, pa) && !InRegion(region, pb)) continue;
+      if (!AxiallyOverlaps(region, pa, pb)) continue;
       // A sliver (opposite vertex on the edge's line, as measured) is left alone: halving its
       // edge makes two slivers with an edge as long, and the passes would never end.
       const DirectedEdge* twin = FindEdge(directed, e.b, e.a);
