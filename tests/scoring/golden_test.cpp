@@ -39,10 +39,12 @@ std::string Slurp(const std::string& path) {
   return s.str();
 }
 
-// The tour run, made once per test binary.
+// The tour run, made once per test process, in a file of the running test's own: ctest runs the
+// tests of this binary as parallel processes, and two of them writing one file corrupted it.
 const std::string& TourRun() {
   static const std::string path = [] {
-    const std::string p = Dir() + "/rotator_cuff_tour.h5";
+    const std::string p = Dir() + "/rotator_cuff_tour_" +
+                          ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".h5";
     const int rc = Shell(kBin +
                          " run scenarios/rotator_cuff_repair.yaml --trajectory "
                          "trajectories/rotator_cuff_tour.yaml --quiet --out " +
