@@ -16,15 +16,7 @@
 #include "soft_internal.h"
 
 namespace arthrosim::physics {
-namespace {
-
-using soft_internal::Cat;
-using soft_internal::Clock;
-using soft_internal::kTetBlock;
-using soft_internal::MsSince;
-using soft_internal::Seg;
-
-}  // namespace
+using namespace soft_internal;  // NOLINT: this file is part of SoftSystem
 
 // ------------------------------------------------------------------------------------------
 // Static solve, energies, queries
