@@ -9,102 +9,42 @@
 #include <sstream>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/yaml_fields.h"
 
 namespace arthrosim::scoring {
 namespace {
 
-int LineOf(const YAML::Node& n) { return n.Mark().is_null() ? 0 : n.Mark().line + 1; }
-
-// A mapping whose keys must come from an allowed list; accessors fail with file:line:field.
-class Map {
+// A plan mapping: the shared strict reader (core/yaml_fields.h) with the few extras plans use.
+class Map : public YamlSection {
  public:
-  Map(const std::string& file, const YAML::Node& node, std::string field,
+  Map(const YamlReader& reader, const YAML::Node& node, std::string field,
       std::initializer_list<const char*> allowed)
-      : file_(file), node_(node), field_(std::move(field)) {
-    if (!node.IsMap()) Fail(node, field_, "expected a mapping");
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      const std::string key = it->first.as<std::string>();
-      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
-        std::string list;
-        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        Fail(it->first, Field(key), "unknown key (expected one of: " + list + ")");
-      }
-    }
-  }
+      : YamlSection(reader, node, std::move(field), allowed) {}
 
+  using YamlSection::Fail;
+  using YamlSection::Field;
+  /// The field path of a composed key ("complete[2]").
+  std::string Field(const std::string& key) const { return FieldPath(field(), key); }
+  /// Throws InputError(file, line of n, field, message).
   [[noreturn]] void Fail(const YAML::Node& n, const std::string& field,
-                         const std::string& msg) const {
-    throw InputError(file_, LineOf(n), field, msg);
-  }
-  std::string Field(const std::string& key) const {
-    return field_.empty() ? key : field_ + "." + key;
-  }
-  bool Has(const char* key) const { return static_cast<bool>(node_[key]); }
-  YAML::Node Get(const char* key) const { return node_[key]; }
-  int line() const { return LineOf(node_); }
-  const std::string& file() const { return file_; }
-
-  YAML::Node Required(const char* key) const {
-    if (!Has(key)) Fail(node_, Field(key), "required field is missing");
-    return node_[key];
-  }
-  double Number(const char* key, std::optional<double> fallback = std::nullopt) const {
-    if (!Has(key)) {
-      if (fallback) return *fallback;
-      Required(key);
-    }
-    return ToNumber(Get(key), Field(key));
+                         const std::string& message) const {
+    reader().Fail(n, field, message);
   }
   double ToNumber(const YAML::Node& n, const std::string& field) const {
-    double v = 0;
-    try {
-      if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, "expected a number");
-    }
-    if (!std::isfinite(v)) Fail(n, field, "expected a finite number");
-    return v;
+    return reader().Number(n, field);
   }
-  double NonNegative(const char* key, double fallback) const {
-    const double v = Number(key, fallback);
-    if (v < 0) Fail(Get(key), Field(key), "must be >= 0");
-    return v;
-  }
-  std::string String(const char* key, std::optional<std::string> fallback = std::nullopt) const {
-    if (!Has(key)) {
-      if (fallback) return *fallback;
-      Required(key);
-    }
-    const YAML::Node n = Get(key);
-    if (!n.IsScalar() || n.Scalar().empty()) Fail(n, Field(key), "expected a non-empty string");
-    return n.Scalar();
-  }
-  bool Bool(const char* key, bool fallback) const {
-    if (!Has(key)) return fallback;
-    try {
-      return Get(key).as<bool>();
-    } catch (const YAML::Exception&) {
-      Fail(Get(key), Field(key), "expected true or false");
-    }
-  }
+  /// A list of non-empty names (empty when absent).
   std::vector<std::string> Strings(const char* key) const {
     std::vector<std::string> out;
-    if (!Has(key)) return out;
-    const YAML::Node n = Get(key);
-    if (!n.IsSequence()) Fail(n, Field(key), "expected a list of names");
+    const YAML::Node n = Sequence(key, false);
     for (std::size_t i = 0; i < n.size(); ++i) {
+      const std::string item = IndexedField(Field(key), i);
       if (!n[i].IsScalar() || n[i].Scalar().empty())
-        Fail(n[i], Field(key) + "[" + std::to_string(i) + "]", "expected a non-empty string");
+        Fail(n[i], item, "expected a non-empty string");
       out.push_back(n[i].Scalar());
     }
     return out;
   }
-
- private:
-  const std::string& file_;
-  YAML::Node node_;
-  std::string field_;
 };
 
 // Names the plan may refer to; checked only when a Model is given.
@@ -118,7 +58,7 @@ bool BodyExists(const Model& model, const std::string& name) {
 }
 
 Range ReadRange(const Map& parent, const YAML::Node& n, const std::string& field) {
-  const Map m(parent.file(), n, field, {"min", "max"});
+  const Map m(parent.reader(), n, field, {"min", "max"});
   Range r;
   if (m.Has("min")) r.min = m.Number("min");
   if (m.Has("max")) r.max = m.Number("max");
@@ -161,23 +101,23 @@ Criterion ReadEventCriterion(const Map& m, const Model* model) {
 
 Criterion ReadCriterion(const Map& parent, const YAML::Node& n, const std::string& field,
                         const Model* model) {
-  const Map outer(parent.file(), n, field, {"event", "bone_removed", "distance", "in_view"});
+  const Map outer(parent.reader(), n, field, {"event", "bone_removed", "distance", "in_view"});
   if (n.size() != 1)
     outer.Fail(n, field, "expected exactly one of event, bone_removed, distance, in_view");
   Criterion c;
   if (outer.Has("event")) {
-    c = ReadEventCriterion(Map(parent.file(), outer.Get("event"), outer.Field("event"),
+    c = ReadEventCriterion(Map(parent.reader(), outer.Get("event"), outer.Field("event"),
                                {"kind", "body", "landmark", "region", "within", "count", "detail"}),
                            model);
   } else if (outer.Has("bone_removed")) {
-    const Map m(parent.file(), outer.Get("bone_removed"), outer.Field("bone_removed"),
+    const Map m(parent.reader(), outer.Get("bone_removed"), outer.Field("bone_removed"),
                 {"bone", "min_volume"});
     c.kind = Criterion::Kind::kBoneRemoved;
     c.bone = m.String("bone");
     c.min_volume_mm3 = m.NonNegative("min_volume", 0);
     if (model) CheckName(m, "bone", c.bone, model->FindBone(c.bone) >= 0, "bone");
   } else if (outer.Has("distance")) {
-    const Map m(parent.file(), outer.Get("distance"), outer.Field("distance"),
+    const Map m(parent.reader(), outer.Get("distance"), outer.Field("distance"),
                 {"region", "landmark", "max"});
     c.kind = Criterion::Kind::kDistance;
     c.region = m.String("region");
@@ -188,7 +128,7 @@ Criterion ReadCriterion(const Map& parent, const YAML::Node& n, const std::strin
       CheckName(m, "landmark", c.landmark, model->FindLandmark(c.landmark) >= 0, "landmark");
     }
   } else {
-    const Map m(parent.file(), outer.Get("in_view"), outer.Field("in_view"),
+    const Map m(parent.reader(), outer.Get("in_view"), outer.Field("in_view"),
                 {"landmark", "min_time"});
     c.kind = Criterion::Kind::kInView;
     c.landmark = m.String("landmark");
@@ -196,13 +136,13 @@ Criterion ReadCriterion(const Map& parent, const YAML::Node& n, const std::strin
     if (model)
       CheckName(m, "landmark", c.landmark, model->FindLandmark(c.landmark) >= 0, "landmark");
   }
-  c.line = LineOf(n);
+  c.line = YamlLine(n);
   return c;
 }
 
 PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field,
                   const Model* model) {
-  const Map m(root.file(), n, field,
+  const Map m(root.reader(), n, field,
               {"id", "title", "instruments", "operation", "target", "complete", "requires",
                "time_budget", "critical"});
   PlanStep s;
@@ -212,7 +152,7 @@ PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field
   if (s.instruments.empty()) m.Fail(n, m.Field("instruments"), "list at least one instrument");
   s.operation = m.String("operation", "");
   if (m.Has("target")) {
-    const Map t(root.file(), m.Get("target"), m.Field("target"), {"landmark", "region"});
+    const Map t(root.reader(), m.Get("target"), m.Field("target"), {"landmark", "region"});
     s.target_landmark = t.String("landmark", "");
     s.target_region = t.String("region", "");
     if (model) {
@@ -245,7 +185,7 @@ PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field
 ProtectedStructure ReadProtected(const Map& root, const YAML::Node& n, const std::string& field,
                                  const Model* model) {
   const Map m(
-      root.file(), n, field,
+      root.reader(), n, field,
       {"name", "body", "region", "max_force", "max_contact_time", "zero_damage", "critical"});
   ProtectedStructure p;
   p.name = m.String("name");
@@ -266,7 +206,7 @@ ProtectedStructure ReadProtected(const Map& root, const YAML::Node& n, const std
 
 void ReadWeightsAndMotion(const Map& root, Plan* plan) {
   if (root.Has("weights")) {
-    const Map w(root.file(), root.Get("weights"), "weights",
+    const Map w(root.reader(), root.Get("weights"), "weights",
                 {"plan_adherence", "efficiency", "safety", "repair_quality"});
     plan->weights.plan_adherence = w.NonNegative("plan_adherence", plan->weights.plan_adherence);
     plan->weights.efficiency = w.NonNegative("efficiency", plan->weights.efficiency);
@@ -277,7 +217,7 @@ void ReadWeightsAndMotion(const Map& root, Plan* plan) {
       w.Fail(root.Get("weights"), "weights", "at least one weight must be > 0");
   }
   if (root.Has("motion")) {
-    const Map m(root.file(), root.Get("motion"), "motion",
+    const Map m(root.reader(), root.Get("motion"), "motion",
                 {"movement_speed", "idle_speed", "max_horizon", "min_tip_in_view",
                  "max_outside_volume", "max_idle_share"});
     MotionThresholds& t = plan->motion;
@@ -318,13 +258,9 @@ int Plan::FindStep(const std::string& id) const {
 }
 
 Plan LoadPlanFromText(const std::string& text, const std::string& path, const Model* model) {
-  YAML::Node doc;
-  try {
-    doc = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.is_null() ? 0 : e.mark.line + 1, "", "invalid YAML: " + e.msg);
-  }
-  const Map root(path, doc, "",
+  const YAML::Node doc = ParseYaml(text, path);
+  const YamlReader reader(path);
+  const Map root(reader, doc, "",
                  {"name", "scenario", "pass_score", "weights", "motion", "action_events",
                   "protected", "steps"});
   Plan plan;

@@ -73,7 +73,7 @@ TEST(Plan, MissingFileAndBadYaml) {
     FAIL();
   } catch (const InputError& e) {
     EXPECT_EQ(e.file(), "bad.yaml");
-    EXPECT_NE(std::string(e.what()).find("invalid YAML"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("YAML syntax error"), std::string::npos);
   }
 }
 
