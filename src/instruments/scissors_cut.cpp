@@ -39,15 +39,19 @@ std::string IdList(const std::vector<std::int32_t>& ids) {
 }  // namespace
 
 bool BladeTriangle(const Model& model, const ToolState& tool, std::array<Vec3, 3>* tri) {
-  thread_local std::vector<collision::ToolPrimitive> prims;
-  collision::ToolPrimitivesWorld(model, tool, &prims);
-  const collision::ToolPrimitive* blade[2] = {nullptr, nullptr};
-  for (const collision::ToolPrimitive& p : prims) {
-    if (p.part == collision::ToolPart::kBlade && p.side >= 0 && p.side < 2) blade[p.side] = &p;
+  if (tool.instrument < 0) return false;
+  // The parts of the one instrument geometry (fixed capacity: nothing allocated per step).
+  const InstrumentParts parts =
+      InstrumentPartsLocal(model.instruments[static_cast<std::size_t>(tool.instrument)], tool.jaw);
+  const InstrumentPart* blade[2] = {nullptr, nullptr};
+  for (int i = 0; i < parts.count; ++i) {
+    const InstrumentPart& p = parts.parts[static_cast<std::size_t>(i)];
+    if (p.part == ToolPart::kBlade && p.side >= 0 && p.side < 2) blade[p.side] = &p;
   }
   if (blade[0] == nullptr || blade[1] == nullptr) return false;
   // Blade core: v0 = hinge, v1 = tip (cutting edge v0-v1); both blades share the hinge.
-  *tri = {blade[0]->core.v[0], blade[0]->core.v[1], blade[1]->core.v[1]};
+  *tri = {tool.pose.Apply(blade[0]->v[0]), tool.pose.Apply(blade[0]->v[1]),
+          tool.pose.Apply(blade[1]->v[1])};
   return true;
 }
 

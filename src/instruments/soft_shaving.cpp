@@ -56,7 +56,7 @@ void ShaveWith(const Model& model, int slot, collision::ToolPart part,
                const StepContext& context, State* state, InstrumentScratch* scratch) {
   const ToolState& tool = state->tools[static_cast<std::size_t>(slot)];
   if (!Button1(tool) || context.world == nullptr || context.soft == nullptr) return;
-  thread_local std::vector<collision::ToolPrimitive> prims;
+  std::vector<collision::ToolPrimitive>& prims = scratch->primitives;
   collision::ToolPrimitivesWorld(model, tool, &prims);
   const collision::ToolPrimitive* tip = FindPart(prims, part);
   if (tip == nullptr) return;

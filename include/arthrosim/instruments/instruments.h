@@ -35,10 +35,11 @@ struct StepContext {
 
 /// Work lists the operations reuse from step to step (Workspace; never part of State).
 struct InstrumentScratch {
-  std::vector<std::int32_t> tets;             ///< element indices an operation selected
-  std::vector<std::int32_t> nodes;            ///< node indices an operation selected
-  Points points;                              ///< 3 x N positions an operation computed
-  std::vector<collision::TetTree> tet_trees;  ///< per soft body: element tree for blade cuts
+  std::vector<std::int32_t> tets;                    ///< element indices an operation selected
+  std::vector<std::int32_t> nodes;                   ///< node indices an operation selected
+  Points points;                                     ///< 3 x N positions an operation computed
+  std::vector<collision::TetTree> tet_trees;         ///< per soft body: element tree for blade cuts
+  std::vector<collision::ToolPrimitive> primitives;  ///< an instrument's parts in world frame
 };
 
 /// Control state of a tool slot as the operations read it.
