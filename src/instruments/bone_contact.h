@@ -1,7 +1,7 @@
 #pragma once
 // Where a rounded tool part touches a bone surface: shared by the burr and the awl.
-#include "arthrosim/core/state.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/state.h"
 
 namespace arthrosim::instruments {
 

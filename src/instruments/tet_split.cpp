@@ -58,8 +58,8 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
   // Nodes made by earlier splits lie on an earlier cut surface: an edge from one is never cut
   // again and they are never duplicated again (a later cut passes through them), so cutting
   // near an existing cut does not refine it step after step.
-  const auto first_made =
-      static_cast<std::int32_t>(model.soft_bodies[static_cast<std::size_t>(body)].rest_mesh.nodes.cols());
+  const auto first_made = static_cast<std::int32_t>(
+      model.soft_bodies[static_cast<std::size_t>(body)].rest_mesh.nodes.cols());
   // 1. Cut edges of the crossed tets: endpoints strictly on opposite sides and the crossing
   // farther than snap_fraction of the edge from both ends (nearer: the cut passes through the
   // node, which is duplicated below instead of making a sliver).

@@ -7,7 +7,8 @@
 namespace arthrosim::io {
 
 /// Reads root's `operations:` map (if present) into m->operations; keys missing keep their
-/// defaults. Call after the bodies are read (operations name them). Throws InputError naming file, line and field for unknown keys or bad values.
+/// defaults. Call after the bodies are read (operations name them). Throws InputError naming file,
+/// line and field for unknown keys or bad values.
 void ReadOperations(const YamlSection& root, Model* m);
 
 }  // namespace arthrosim::io

@@ -26,9 +26,10 @@ void main() {
 // Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
 // fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
 // overview: a headlight without fall-off (u_ref2 = 0). PATTERN (a #define put in front of this
-// body, one program per pattern): 0 plain (rough > 0: cauterised tissue), 1 braided suture, 2 bone (uv.x = albedo grain factor;
-// procedural pits only where burred). One program per pattern because llvmpipe runs both sides
-// of a branch under a lane mask: a runtime pattern switch shaded every fragment with the noise.
+// body, one program per pattern): 0 plain (rough > 0: cauterised tissue), 1 braided suture, 2 bone
+// (uv.x = albedo grain factor; procedural pits only where burred). One program per pattern because
+// llvmpipe runs both sides of a branch under a lane mask: a runtime pattern switch shaded every
+// fragment with the noise.
 inline constexpr const char* kMeshFragmentBody = R"(
 in vec3 v_pos;
 in vec3 v_normal;

@@ -7,8 +7,8 @@
 #include <memory>
 #include <vector>
 
-#include "arthrosim/core/types.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/types.h"
 #include "arthrosim/render/scene.h"
 
 namespace arthrosim::render {

@@ -6,8 +6,8 @@
 #include <string>
 
 #include "arthrosim/collision/contact_generation.h"
-#include "arthrosim/core/model.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/model.h"
 
 namespace arthrosim::collision {
 

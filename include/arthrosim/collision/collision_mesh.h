@@ -11,8 +11,8 @@
 #include <utility>
 #include <vector>
 
-#include "arthrosim/core/types.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/types.h"
 
 namespace arthrosim::collision {
 

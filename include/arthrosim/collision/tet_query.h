@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "arthrosim/collision/collision_mesh.h"
-#include "arthrosim/core/types.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/types.h"
 
 namespace arthrosim::collision {
 

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/mesh_types.h"
 #include "arthrosim/core/operation_options.h"
 #include "arthrosim/core/types.h"
-#include "arthrosim/core/mesh_types.h"
 
 namespace arthrosim {
 

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "arthrosim/core/types.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/types.h"
 
 namespace arthrosim {
 

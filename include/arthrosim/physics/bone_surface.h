@@ -15,8 +15,8 @@
 // limited to max_depth per call, (3) reverts any vertex whose move would flip an incident
 // triangle (vertices never pass through each other locally), and repeats (1)-(3) a few rounds so
 // chord midpoints left inside the tool are carved too. It returns V_before - V_after.
-#include "arthrosim/core/state.h"
 #include "arthrosim/core/mesh_types.h"
+#include "arthrosim/core/state.h"
 
 namespace arthrosim::physics {
 

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/mesh_types.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
-#include "arthrosim/core/mesh_types.h"
 #include "arthrosim/physics/soft_system.h"
 
 namespace arthrosim::physics {
