@@ -132,11 +132,21 @@ void TriangleBvh::QueryPairs(const TriangleBvh& other, double margin,
   if (empty() || other.empty()) return;
   const std::size_t first = out->size();
   auto size = [](const Box& b) { return (b.hi - b.lo).squaredNorm(); };
-  thread_local std::vector<std::pair<int, int>> stack;  // no allocation once warm
-  stack.assign(1, {0, 0});
-  while (!stack.empty()) {
-    const auto [i, j] = stack.back();
-    stack.pop_back();
+  // Depth-first; every pop descends one level in one tree and leaves at most one sibling
+  // pending, so the stack never holds more than depth_ + other.depth_ + 1 pairs: a fixed array
+  // for every mesh of the scene, the heap only for degenerate trees.
+  constexpr int kFixed = 256;
+  std::pair<int, int> fixed[kFixed];
+  std::vector<std::pair<int, int>> heap;
+  std::pair<int, int>* stack = fixed;
+  if (depth_ + other.depth_ + 1 > kFixed) {
+    heap.resize(static_cast<std::size_t>(depth_ + other.depth_) + 1);
+    stack = heap.data();
+  }
+  int top = 0;
+  stack[top++] = {0, 0};
+  while (top > 0) {
+    const auto [i, j] = stack[--top];
     const Node& a = nodes_[i];
     const Node& b = other.nodes_[j];
     if (!a.box.Inflated(margin).Overlaps(b.box)) continue;
@@ -144,11 +154,11 @@ void TriangleBvh::QueryPairs(const TriangleBvh& other, double margin,
     if (la && lb) {
       out->emplace_back(a.tri, b.tri);
     } else if (lb || (!la && size(a.box) >= size(b.box))) {
-      stack.emplace_back(a.right, j);
-      stack.emplace_back(a.left, j);
+      stack[top++] = {a.right, j};
+      stack[top++] = {a.left, j};
     } else {
-      stack.emplace_back(i, b.right);
-      stack.emplace_back(i, b.left);
+      stack[top++] = {i, b.right};
+      stack[top++] = {i, b.left};
     }
   }
   std::sort(out->begin() + static_cast<std::ptrdiff_t>(first), out->end());
