@@ -51,29 +51,35 @@ LineMesh ReadLineMesh(const std::string& path) {
   return std::move(d.lines);
 }
 
-MeshData MakeMeshData(const TetMesh& tets) {
+namespace {
+
+// A MeshData over `nodes` with no elements yet: format "memory", node tags 1..n in order.
+template <class Nodes>
+MeshData EmptyMemoryMesh(const Nodes& nodes) {
   MeshData d;
   d.format = "memory";
-  d.volume = tets;
-  d.surface.nodes = tets.nodes;
-  d.lines.nodes = tets.nodes;
-  d.tet_physical.assign(tets.tets.size(), 0);
-  d.node_tags.resize(static_cast<std::size_t>(tets.nodes.cols()));
+  d.volume.nodes = nodes;
+  d.surface.nodes = nodes;
+  d.lines.nodes = nodes;
+  d.node_tags.resize(static_cast<std::size_t>(nodes.cols()));
   for (std::size_t i = 0; i < d.node_tags.size(); ++i)
     d.node_tags[i] = static_cast<std::int64_t>(i) + 1;
   return d;
 }
 
+}  // namespace
+
+MeshData MakeMeshData(const TetMesh& tets) {
+  MeshData d = EmptyMemoryMesh(tets.nodes);
+  d.volume = tets;
+  d.tet_physical.assign(tets.tets.size(), 0);
+  return d;
+}
+
 MeshData MakeMeshData(const TriMesh& tris) {
-  MeshData d;
-  d.format = "memory";
+  MeshData d = EmptyMemoryMesh(tris.nodes);
   d.surface = tris;
-  d.volume.nodes = tris.nodes;
-  d.lines.nodes = tris.nodes;
   d.tri_physical.assign(tris.tris.size(), 0);
-  d.node_tags.resize(static_cast<std::size_t>(tris.nodes.cols()));
-  for (std::size_t i = 0; i < d.node_tags.size(); ++i)
-    d.node_tags[i] = static_cast<std::int64_t>(i) + 1;
   return d;
 }
 
