@@ -1,5 +1,7 @@
 #include "arthrosim/core/yaml_fields.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -34,6 +36,11 @@ void YamlReader::Fail(const YAML::Node& n, const std::string& field,
   throw InputError(file_, YamlLine(n), field, message);
 }
 
+void YamlReader::Warn(const YAML::Node& n, const std::string& field,
+                      const std::string& message) const {
+  warnings_.push_back(InputError(file_, YamlLine(n), field, message).what());
+}
+
 void YamlReader::CheckKeys(const YAML::Node& map, const std::string& field,
                            const std::vector<const char*>& allowed) const {
   if (!map.IsMap()) Fail(map, field, "expected a map");
@@ -60,7 +67,7 @@ double YamlReader::Number(const YAML::Node& n, const std::string& field) const {
 }
 
 std::int64_t YamlReader::Integer(const YAML::Node& n, const std::string& field,
-                                 std::int64_t min_value) const {
+                                 std::int64_t min_value, std::int64_t max_value) const {
   std::int64_t v = 0;
   try {
     if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
@@ -69,6 +76,7 @@ std::int64_t YamlReader::Integer(const YAML::Node& n, const std::string& field,
     Fail(n, field, "expected an integer");
   }
   if (v < min_value) Fail(n, field, "must be >= " + std::to_string(min_value));
+  if (v > max_value) Fail(n, field, "must be <= " + std::to_string(max_value));
   return v;
 }
 
@@ -127,10 +135,27 @@ double YamlSection::NonNegative(const char* key, std::optional<double> fallback)
   return v;
 }
 
-std::int64_t YamlSection::Integer(const char* key, std::int64_t fallback,
-                                  std::int64_t min_value) const {
+double YamlSection::Quantity(const char* key, const QuantityRange& range,
+                             std::optional<double> fallback) const {
+  const double v = Number(key, fallback);
+  if (!Has(key)) return v;
+  const bool below = range.min_exclusive ? !(v > range.min) : !(v >= range.min);
+  if (below || v > range.max) {
+    Fail(key, fmt::format("must be in {}{:g}, {:g}] {}, got {:g}", range.min_exclusive ? "(" : "[",
+                          range.min, range.max, range.unit, v));
+  }
+  if (v < range.usual_min || v > range.usual_max) {
+    reader_.Warn(Get(key), Field(key),
+                 fmt::format("{:g} {} is outside the usual range [{:g}, {:g}] {}: check the unit",
+                             v, range.unit, range.usual_min, range.usual_max, range.unit));
+  }
+  return v;
+}
+
+std::int64_t YamlSection::Integer(const char* key, std::int64_t fallback, std::int64_t min_value,
+                                  std::int64_t max_value) const {
   if (!Has(key)) return fallback;
-  return reader_.Integer(Get(key), Field(key), min_value);
+  return reader_.Integer(Get(key), Field(key), min_value, max_value);
 }
 
 std::string YamlSection::String(const char* key, std::optional<std::string> fallback) const {

@@ -1,9 +1,11 @@
 #include "arthrosim/io/scenario_loader.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -16,19 +18,37 @@
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/mesh/mesh_validate.h"
 #include "scenario_operations.h"
+#include "scenario_ranges.h"
 
 namespace arthrosim::io {
 namespace {
 
 namespace fs = std::filesystem;
 
+// Gravity's length against ranges::kMaxGravityMmS2 (error) and the usual range (warning).
+void CheckGravity(const YamlSection& root, const Vec3& gravity_mm_s2) {
+  if (!root.Has("gravity")) return;
+  const double g = gravity_mm_s2.norm();
+  if (g > ranges::kMaxGravityMmS2) {
+    root.Fail("gravity", fmt::format("its length must be <= {:g} mm/s^2 (10 g), got {:g}",
+                                     ranges::kMaxGravityMmS2, g));
+  }
+  if (g > ranges::kUsualMaxGravityMmS2 || (g > 0 && g < ranges::kUsualMinGravityMmS2)) {
+    root.reader().Warn(root.Get("gravity"), root.Field("gravity"),
+                       fmt::format("{:g} mm/s^2 is outside the usual range [{:g}, {:g}] mm/s^2 "
+                                   "(Earth: 9810; 0 for none): check the unit",
+                                   g, ranges::kUsualMinGravityMmS2, ranges::kUsualMaxGravityMmS2));
+  }
+}
+
 void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   if (root.Has("time")) {
     YamlSection t(root.reader(), root.Get("time"), "time", {"dt", "duration"});
-    m->options.dt_s = t.Positive("dt", 0.02);
-    m->options.duration_s = t.Positive("duration", 1.0);
+    m->options.dt_s = t.Quantity("dt", ranges::kTimeStep, 0.02);
+    m->options.duration_s = t.Quantity("duration", ranges::kDuration, 1.0);
   }
   m->options.gravity_mm_s2 = root.Vector("gravity", m->options.gravity_mm_s2);
+  CheckGravity(root, m->options.gravity_mm_s2);
   m->options.seed = static_cast<std::uint64_t>(root.Integer("seed", 1, 0));
   if (root.Has("solver")) {
     YamlSection s(root.reader(), root.Get("solver"), "solver",
@@ -43,7 +63,8 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
       root.reader().Fail(s.Get("integrator"), s.Field("integrator"),
                          "expected implicit_euler or arkode, got '" + integrator + "'");
     }
-    m->solver.cg_max_iterations = static_cast<int>(s.Integer("cg_max_iterations", 100, 1));
+    m->solver.cg_max_iterations =
+        static_cast<int>(s.Integer("cg_max_iterations", 100, 1, ranges::kMaxIterations));
     m->solver.cg_tolerance = s.Positive("cg_tolerance", 1e-8);
     const std::string product = s.String("product", "assembled");
     if (product == "assembled") {
@@ -61,14 +82,15 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
     } else {
       s.Fail("preconditioner", "expected rest_cholesky or block_jacobi, got '" + pre + "'");
     }
-    m->solver.refactor_iterations =
-        static_cast<int>(s.Integer("refactor_iterations", m->solver.refactor_iterations, 0));
+    m->solver.refactor_iterations = static_cast<int>(
+        s.Integer("refactor_iterations", m->solver.refactor_iterations, 0, ranges::kMaxIterations));
   }
   if (root.Has("output")) {
     YamlSection o(root.reader(), root.Get("output"), "output", {"file", "every", "flush_interval"});
     m->options.output_file = o.String("file", "run.h5");
-    m->options.output_every_steps = static_cast<int>(o.Integer("every", 1, 1));
-    m->options.flush_interval_s = o.Positive("flush_interval", 1.0);
+    m->options.output_every_steps =
+        static_cast<int>(o.Integer("every", 1, 1, ranges::kMaxOutputEvery));
+    m->options.flush_interval_s = o.Quantity("flush_interval", ranges::kFlushInterval, 1.0);
   }
 }
 
@@ -80,8 +102,9 @@ void ReadContact(const YamlSection& root, Model* m) {
       root.reader(), root.Get("contact"), "contact",
       {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction", "max_substeps",
        "stiffness", "sharp_point_volume_contacts", "tissue_tissue_contacts", "bone_tip_contacts"});
-  c.alarm_distance_mm = s.Positive("alarm_distance", c.alarm_distance_mm);
-  c.contact_distance_mm = s.Positive("contact_distance", c.contact_distance_mm);
+  c.alarm_distance_mm = s.Quantity("alarm_distance", ranges::kContactDistance, c.alarm_distance_mm);
+  c.contact_distance_mm =
+      s.Quantity("contact_distance", ranges::kContactDistance, c.contact_distance_mm);
   if (!(c.contact_distance_mm < c.alarm_distance_mm)) {
     root.reader().Fail(s.Has("contact_distance") ? s.Get("contact_distance") : s.node(),
                        s.Field("contact_distance"),
@@ -94,7 +117,8 @@ void ReadContact(const YamlSection& root, Model* m) {
     root.reader().Fail(s.Get("sweep_fraction"), s.Field("sweep_fraction"),
                        "must be in (0, 1] (a larger sweep substep can tunnel)");
   }
-  c.max_substeps = static_cast<int>(s.Integer("max_substeps", c.max_substeps, 1));
+  c.max_substeps =
+      static_cast<int>(s.Integer("max_substeps", c.max_substeps, 1, ranges::kMaxPasses));
   if (c.max_substeps > 4096) {
     root.reader().Fail(s.Get("max_substeps"), s.Field("max_substeps"), "must be <= 4096");
   }
@@ -106,15 +130,20 @@ void ReadContact(const YamlSection& root, Model* m) {
   YamlSection k(root.reader(), s.Get("stiffness"), s.Field("stiffness"),
                 {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue",
                  "bone", "tool_bone"});
-  c.tool_tissue_stiffness_n_per_mm = k.Positive("tool_tissue", c.tool_tissue_stiffness_n_per_mm);
-  c.tool_thread_stiffness_n_per_mm = k.Positive("tool_thread", c.tool_thread_stiffness_n_per_mm);
-  c.tool_volume_stiffness_n_per_mm = k.Positive("tool_volume", c.tool_volume_stiffness_n_per_mm);
+  c.tool_tissue_stiffness_n_per_mm =
+      k.Quantity("tool_tissue", ranges::kContactStiffness, c.tool_tissue_stiffness_n_per_mm);
+  c.tool_thread_stiffness_n_per_mm =
+      k.Quantity("tool_thread", ranges::kContactStiffness, c.tool_thread_stiffness_n_per_mm);
+  c.tool_volume_stiffness_n_per_mm =
+      k.Quantity("tool_volume", ranges::kContactStiffness, c.tool_volume_stiffness_n_per_mm);
   c.thread_tissue_stiffness_n_per_mm =
-      k.Positive("thread_tissue", c.thread_tissue_stiffness_n_per_mm);
+      k.Quantity("thread_tissue", ranges::kContactStiffness, c.thread_tissue_stiffness_n_per_mm);
   c.tissue_tissue_stiffness_n_per_mm =
-      k.Positive("tissue_tissue", c.tissue_tissue_stiffness_n_per_mm);
-  c.bone_stiffness_n_per_mm = k.Positive("bone", c.bone_stiffness_n_per_mm);
-  c.tool_bone_stiffness_n_per_mm = k.Positive("tool_bone", c.tool_bone_stiffness_n_per_mm);
+      k.Quantity("tissue_tissue", ranges::kContactStiffness, c.tissue_tissue_stiffness_n_per_mm);
+  c.bone_stiffness_n_per_mm =
+      k.Quantity("bone", ranges::kContactStiffness, c.bone_stiffness_n_per_mm);
+  c.tool_bone_stiffness_n_per_mm =
+      k.Quantity("tool_bone", ranges::kContactStiffness, c.tool_bone_stiffness_n_per_mm);
 }
 
 // Optional `thread_solver:` section: the suture solver's settings (docs/scenario-format.md).
@@ -128,16 +157,17 @@ void ReadThreadSolver(const YamlSection& root, Model* m) {
                  "compression_stiffness_fraction", "speed_barrier_stiffness", "exclusion_factor"});
   t.contact_stiffness_n_per_mm = s.Positive("contact_stiffness", t.contact_stiffness_n_per_mm);
   t.contact_margin_factor = s.NonNegative("contact_margin_factor", t.contact_margin_factor);
-  t.max_newton_iterations =
-      static_cast<int>(s.Integer("max_newton_iterations", t.max_newton_iterations, 1));
-  t.max_active_set_passes =
-      static_cast<int>(s.Integer("max_active_set_passes", t.max_active_set_passes, 1));
+  t.max_newton_iterations = static_cast<int>(
+      s.Integer("max_newton_iterations", t.max_newton_iterations, 1, ranges::kMaxPasses));
+  t.max_active_set_passes = static_cast<int>(
+      s.Integer("max_active_set_passes", t.max_active_set_passes, 1, ranges::kMaxPasses));
   t.max_strain = s.Positive("max_strain", t.max_strain);
-  t.strain_limit_passes =
-      static_cast<int>(s.Integer("strain_limit_passes", t.strain_limit_passes, 1));
+  t.strain_limit_passes = static_cast<int>(
+      s.Integer("strain_limit_passes", t.strain_limit_passes, 1, ranges::kMaxPasses));
   t.newton_tolerance_mm = s.Positive("newton_tolerance", t.newton_tolerance_mm);
-  t.max_ccd_rounds = static_cast<int>(s.Integer("max_ccd_rounds", t.max_ccd_rounds, 0));
-  t.ccd_samples = static_cast<int>(s.Integer("ccd_samples", t.ccd_samples, 1));
+  t.max_ccd_rounds =
+      static_cast<int>(s.Integer("max_ccd_rounds", t.max_ccd_rounds, 0, ranges::kMaxPasses));
+  t.ccd_samples = static_cast<int>(s.Integer("ccd_samples", t.ccd_samples, 1, ranges::kMaxPasses));
   t.ccd_close_fraction = s.NonNegative("ccd_close_fraction", t.ccd_close_fraction);
   t.crossing_tolerance_mm = s.Positive("crossing_tolerance", t.crossing_tolerance_mm);
   t.compression_stiffness_fraction =
@@ -163,7 +193,7 @@ void ReadHaptics(const YamlSection& root, Model* m) {
       s.Positive("coupling_stiffness_n_per_mm", h.coupling_stiffness_n_per_mm);
   h.coupling_damping_n_s_per_mm =
       s.NonNegative("coupling_damping_n_s_per_mm", h.coupling_damping_n_s_per_mm);
-  h.max_force_n = s.Positive("max_force_n", h.max_force_n);
+  h.max_force_n = s.Quantity("max_force_n", ranges::kHapticMaxForce, h.max_force_n);
 }
 
 void ReadMaterials(const YamlSection& root, Model* m) {
@@ -176,16 +206,29 @@ void ReadMaterials(const YamlSection& root, Model* m) {
     YamlSection s(
         root.reader(), it->second, "materials." + mat.name,
         {"young_modulus", "poisson_ratio", "density", "rayleigh_mass", "rayleigh_stiffness"});
-    mat.young_modulus_pa = s.Positive("young_modulus");
+    mat.young_modulus_pa = s.Quantity("young_modulus", ranges::kYoungModulus);
     mat.poisson_ratio = s.Number("poisson_ratio");
     if (mat.poisson_ratio < 0 || mat.poisson_ratio >= 0.5) {
       root.reader().Fail(s.Get("poisson_ratio"), s.Field("poisson_ratio"),
                          "must be in [0, 0.5), got " + s.Get("poisson_ratio").Scalar());
     }
-    mat.density_kg_m3 = s.Positive("density");
-    mat.rayleigh_mass = s.NonNegative("rayleigh_mass", 0);
-    mat.rayleigh_stiffness = s.NonNegative("rayleigh_stiffness", 0);
+    mat.density_kg_m3 = s.Quantity("density", ranges::kDensity);
+    mat.rayleigh_mass = s.Quantity("rayleigh_mass", ranges::kRayleighMass, 0);
+    mat.rayleigh_stiffness = s.Quantity("rayleigh_stiffness", ranges::kRayleighStiffness, 0);
     m->materials.push_back(mat);
+  }
+}
+
+// Runs read (which reads the mesh of body section s); a fault in the mesh file is rethrown
+// naming the scenario line and field that referenced the mesh, then the mesh's own file, line
+// and field.
+template <class Read>
+void WithMeshContext(const YamlSection& s, const Read& read) {
+  try {
+    read();
+  } catch (const InputError& e) {
+    if (e.file() == s.reader().file()) throw;  // already the scenario's own error
+    s.Fail("mesh", std::string("in the mesh: ") + e.what());
   }
 }
 
@@ -206,7 +249,7 @@ void ReadThreadBlock(const YamlSection& body, ThreadModel* t) {
   const Vec3 start = s.Vector("start");
   const Vec3 end = s.Vector("end");
   if (!s.Has("nodes")) s.Required("nodes");
-  const auto n = s.Integer("nodes", 0, 2);
+  const auto n = s.Integer("nodes", 0, 2, ranges::kMaxThreadNodes);
   if ((end - start).norm() <= 0)
     s.reader().Fail(s.Get("end"), s.Field("end"), "must differ from start");
   t->initial.nodes.resize(3, n);
@@ -214,12 +257,12 @@ void ReadThreadBlock(const YamlSection& body, ThreadModel* t) {
     t->initial.nodes.col(i) = start + (end - start) * (static_cast<double>(i) / double(n - 1));
     if (i > 0) t->initial.edges.push_back({std::int32_t(i - 1), std::int32_t(i)});
   }
-  t->diameter_mm = s.Positive("diameter", 0.55);
-  t->density_kg_m3 = s.Positive("density", 1300);
-  t->stretch_stiffness_n = s.Positive("stretch_stiffness", 5000);
+  t->diameter_mm = s.Quantity("diameter", ranges::kThreadDiameter, 0.55);
+  t->density_kg_m3 = s.Quantity("density", ranges::kDensity, 1300);
+  t->stretch_stiffness_n = s.Quantity("stretch_stiffness", ranges::kThreadStretchStiffness, 5000);
   t->bend_stiffness_n_mm2 = s.NonNegative("bend_stiffness", 0);
   t->damping_per_s = s.NonNegative("damping", 0);
-  t->max_speed_mm_s = s.Positive("max_speed", 500);
+  t->max_speed_mm_s = s.Quantity("max_speed", ranges::kThreadMaxSpeed, 500);
   t->self_collision = s.Bool("self_collision", true);
   const YAML::Node fixed = s.Sequence("fixed_nodes", false);
   for (std::size_t i = 0; i < fixed.size(); ++i) {
@@ -260,8 +303,10 @@ void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
       SoftBodyModel b;
       b.name = name;
       b.mesh_file = s.String("mesh");
-      b.rest_mesh = mesh::ReadTetMesh(MeshPath(s, base_dir));
-      mesh::OrientAndCheck(&b.rest_mesh, MeshPath(s, base_dir));
+      WithMeshContext(s, [&] {
+        b.rest_mesh = mesh::ReadTetMesh(MeshPath(s, base_dir));
+        mesh::OrientAndCheck(&b.rest_mesh, MeshPath(s, base_dir));
+      });
       if (b.rest_mesh.tets.empty())
         root.reader().Fail(s.Get("mesh"), s.Field("mesh"), "soft body mesh has no tetrahedra");
       const std::string mat = s.String("material");
@@ -276,10 +321,10 @@ void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
       BoneModel b;
       b.name = name;
       b.mesh_file = s.String("mesh");
-      b.surface = mesh::ReadTriMesh(MeshPath(s, base_dir));
+      WithMeshContext(s, [&] { b.surface = mesh::ReadTriMesh(MeshPath(s, base_dir)); });
       if (b.surface.tris.empty())
         root.reader().Fail(s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
-      b.hardness = s.Positive("hardness", 1.0);
+      b.hardness = s.Quantity("hardness", ranges::kBoneHardness, 1.0);
       m->bones.push_back(std::move(b));
     } else if (kind == "thread") {
       ThreadModel t;
@@ -436,7 +481,7 @@ void ReadInstruments(const YamlSection& root, Model* m) {
     }
     in.kind = *parsed;
     in.portal = CheckPortal(s, *m, "");
-    in.shaft_diameter_mm = s.Positive("shaft_diameter", 4.5);
+    in.shaft_diameter_mm = s.Quantity("shaft_diameter", ranges::kShaftDiameter, 4.5);
     in.shaft_length_mm = s.Positive("shaft_length", 150);
     in.tip_length_mm = s.Positive("tip_length", 8);
     in.tip_radius_mm = s.Positive("tip_radius", 2);
@@ -469,9 +514,19 @@ void ReadCamera(const YamlSection& root, Model* m) {
   c.initial_pose = Pose{eye, LookAtOrientation(eye, target)};
 }
 
+// Hands the reader's warnings to the caller, or prints them to stderr when it takes none.
+void ReportWarnings(const std::vector<std::string>& found, std::vector<std::string>* warnings) {
+  if (warnings != nullptr) {
+    warnings->insert(warnings->end(), found.begin(), found.end());
+    return;
+  }
+  for (const std::string& w : found) std::fprintf(stderr, "warning: %s\n", w.c_str());
+}
+
 }  // namespace
 
-Model LoadScenarioFromText(const std::string& text, const std::string& path) {
+Model LoadScenarioFromText(const std::string& text, const std::string& path,
+                           std::vector<std::string>* warnings) {
   const YamlReader ctx(path);
   const YAML::Node doc = ParseYaml(text, path);
   if (!doc.IsMap()) throw InputError(path, 1, "", "expected a YAML mapping at the top level");
@@ -497,15 +552,16 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path) {
   ReadInstruments(root, &m);
   ReadCamera(root, &m);
   ReadOperations(root, &m);  // last: operations name bodies (the anchor's sutures)
+  ReportWarnings(ctx.warnings(), warnings);
   return m;
 }
 
-Model LoadScenario(const std::string& path) {
+Model LoadScenario(const std::string& path, std::vector<std::string>* warnings) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "", "cannot open scenario file");
   std::stringstream buffer;
   buffer << in.rdbuf();
-  return LoadScenarioFromText(buffer.str(), path);
+  return LoadScenarioFromText(buffer.str(), path, warnings);
 }
 
 }  // namespace arthrosim::io

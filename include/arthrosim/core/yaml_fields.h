@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +29,19 @@ std::string IndexedField(const std::string& field, std::size_t i);
 /// Parses YAML text; a syntax error throws InputError(file, line, "", "YAML syntax error: ...").
 YAML::Node ParseYaml(const std::string& text, const std::string& file);
 
+/// A physical quantity's plausible values: outside [min, max] (min itself excluded when
+/// min_exclusive) no material, tool or clock has it, and reading it is an InputError; inside
+/// that but outside [usual_min, usual_max] it is possible but unusual (a 1 Pa tissue, a 0.5 s
+/// time step), and reading it records a warning. `unit` is how the file writes it.
+struct QuantityRange {
+  double min = 0;
+  bool min_exclusive = true;
+  double max = 0;
+  double usual_min = 0;
+  double usual_max = 0;
+  const char* unit = "";
+};
+
 /// Reads the values of one YAML file strictly. Every failure throws InputError.
 class YamlReader {
  public:
@@ -38,13 +52,18 @@ class YamlReader {
   /// Throws InputError(file, line of n, field, message).
   [[noreturn]] void Fail(const YAML::Node& n, const std::string& field,
                          const std::string& message) const;
+  /// Records "file:line: field 'f': message" in warnings() (the input is still accepted).
+  void Warn(const YAML::Node& n, const std::string& field, const std::string& message) const;
+  /// The warnings recorded so far, in reading order.
+  const std::vector<std::string>& warnings() const { return warnings_; }
   /// Throws unless map is a map whose every key is in allowed ("unknown key 'x'; allowed: ...").
   void CheckKeys(const YAML::Node& map, const std::string& field,
                  const std::vector<const char*>& allowed) const;
   /// A finite number ("expected a number, found 'abc'").
   double Number(const YAML::Node& n, const std::string& field) const;
-  /// A whole number >= min_value.
-  std::int64_t Integer(const YAML::Node& n, const std::string& field, std::int64_t min_value) const;
+  /// A whole number in [min_value, max_value].
+  std::int64_t Integer(const YAML::Node& n, const std::string& field, std::int64_t min_value,
+                       std::int64_t max_value = std::numeric_limits<std::int64_t>::max()) const;
   /// A scalar as written (may be empty).
   std::string Scalar(const YAML::Node& n, const std::string& field) const;
   /// true or false.
@@ -54,6 +73,7 @@ class YamlReader {
 
  private:
   std::string file_;
+  mutable std::vector<std::string> warnings_;  // reading records warnings; it never changes input
 };
 
 /// A YAML map whose keys are checked against an allowed list on construction (so a typo is an
@@ -84,8 +104,15 @@ class YamlSection {
   double Positive(const char* key, std::optional<double> fallback = std::nullopt) const;
   /// A number >= 0.
   double NonNegative(const char* key, std::optional<double> fallback = std::nullopt) const;
-  /// A whole number >= min_value; the fallback when absent.
-  std::int64_t Integer(const char* key, std::int64_t fallback, std::int64_t min_value) const;
+  /// A number within range (outside it: InputError naming the range and unit); a warning when
+  /// outside the usual part of it. A fallback is returned unchecked.
+  double Quantity(const char* key, const QuantityRange& range,
+                  std::optional<double> fallback = std::nullopt) const;
+  /// A whole number in [min_value, max_value]; the fallback when absent. Counts that size
+  /// memory or loops take a max_value, so an absurd one is an error, not an allocation failure
+  /// or a hang.
+  std::int64_t Integer(const char* key, std::int64_t fallback, std::int64_t min_value,
+                       std::int64_t max_value = std::numeric_limits<std::int64_t>::max()) const;
   /// A non-empty string; the fallback when absent (required without one).
   std::string String(const char* key, std::optional<std::string> fallback = std::nullopt) const;
   /// true or false; the fallback when absent.
