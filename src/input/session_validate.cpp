@@ -1,8 +1,10 @@
 // Checks shared by the CSV and HDF5 session readers.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <numeric>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/input/session.h"
@@ -14,6 +16,36 @@ namespace {
 constexpr double kUnitTolerance = 1e-9;
 // Up to this it is normalised with a warning (6-digit logs); beyond, it is an error.
 constexpr double kRepairTolerance = 1e-3;
+
+// Throws when, at some time, one instrument is in both tool slots: each slot holds the
+// instrument of its latest row, and rows with the same timestamp take effect together (so a
+// swap between the slots within one instant is fine).
+void CheckInstrumentInOneSlot(const SessionTable& table) {
+  std::vector<std::size_t> order(table.rows.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return table.rows[a].t_s < table.rows[b].t_s;
+  });
+  std::array<const SessionRow*, kToolSlots> held{};
+  for (std::size_t i = 0; i < order.size();) {
+    const double t = table.rows[order[i]].t_s;
+    for (; i < order.size() && table.rows[order[i]].t_s == t; ++i) {
+      const SessionRow& r = table.rows[order[i]];
+      const int d = static_cast<int>(r.device);
+      if (d < kToolSlots) held[static_cast<std::size_t>(d)] = &r;
+    }
+    const SessionRow* a = held[0];
+    const SessionRow* b = held[1];
+    if (a == nullptr || b == nullptr || a->instrument.empty() || a->instrument != b->instrument)
+      continue;
+    const SessionRow& later = a->line > b->line ? *a : *b;
+    const SessionRow& earlier = a->line > b->line ? *b : *a;
+    throw InputError(table.file, later.line, "instrument",
+                     fmt::format("'{}' is in slot0 and slot1 at the same time ({} s; the other "
+                                 "slot took it at line {}); an instrument is in one slot at a time",
+                                 a->instrument, t, earlier.line));
+  }
+}
 
 }  // namespace
 
@@ -60,6 +92,7 @@ void ValidateSession(SessionTable* table, const SessionOptions& options) {
     }
     last[d] = &r;
   }
+  CheckInstrumentInOneSlot(*table);
   for (int d = 0; d < kDeviceCount; ++d) {
     if (normalised[d] > 0) {
       table->warnings.push_back(fmt::format(

@@ -159,6 +159,29 @@ TEST(BadData, NonFiniteValuesNameLineAndColumn) {
   EXPECT_NE(e3.find("'1e' is not a number"), std::string::npos) << e3;
 }
 
+TEST(BadData, OneInstrumentInBothSlotsNamesTheLineThatTookItTwice) {
+  const std::string e = ErrorOf(kHeader +
+                                "0,slot0,grasper,0,0,0,1,0,0,0,0,0\n"
+                                "0,slot1,shaver,0,0,0,1,0,0,0,0,0\n"
+                                "0.1,slot1,grasper,0,0,0,1,0,0,0,0,0\n");
+  EXPECT_NE(e.find("s.csv:4: field 'instrument': 'grasper' is in slot0 and slot1 at the same "
+                   "time (0.1 s; the other slot took it at line 2)"),
+            std::string::npos)
+      << e;
+  // Handing the instruments over between the slots within one instant is not a conflict, in
+  // either row order.
+  EXPECT_EQ(ErrorOf(kHeader + "0,slot0,grasper,0,0,0,1,0,0,0,0,0\n"
+                              "0,slot1,shaver,0,0,0,1,0,0,0,0,0\n"
+                              "0.1,slot1,grasper,0,0,0,1,0,0,0,0,0\n"
+                              "0.1,slot0,shaver,0,0,0,1,0,0,0,0,0\n"),
+            "");
+  // Nor is an instrument returned to the rack (empty) in one slot and picked in the other.
+  EXPECT_EQ(ErrorOf(kHeader + "0,slot0,grasper,0,0,0,1,0,0,0,0,0\n"
+                              "0.1,slot0,,0,0,0,1,0,0,0,0,0\n"
+                              "0.2,slot1,grasper,0,0,0,1,0,0,0,0,0\n"),
+            "");
+}
+
 TEST(BadData, TimestampGoingBackIsAnError) {
   const std::string e = ErrorOf(kHeader +
                                 "0.2,slot0,grasper,0,0,0,1,0,0,0,0,0\n"
@@ -286,12 +309,14 @@ TEST(RecordReplay, RecordedFramesReplayBitForBit) {
   const Model m = MakeTestModel();
   std::string text = kHeader;
   double t = 0;
+  // slot0 exchanges the grasper for the hook half-way, slot1 the scissors for the shaver.
+  const char* kInstruments[2][2] = {{"grasper", "hook"}, {"scissors", "shaver"}};
   for (int i = 0; i < 400; ++i) {  // jittery 1 kHz, rotating, jaw moving, short presses
     const Quat q = AimAlong(Vec3(std::cos(t), std::sin(3 * t), 1.0), 0.1 * i);
     text += fmt::format(
         "{:.17g},slot{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{}\n", t,
-        i % 2, i < 200 ? "grasper" : "hook", 10 * std::sin(t * 7), t, -t, q.w(), q.x(), q.y(),
-        q.z(), 0.5 + 0.5 * std::sin(t * 11), i % 37 == 0 ? 1 : 0);
+        i % 2, kInstruments[i % 2][i < 200 ? 0 : 1], 10 * std::sin(t * 7), t, -t, q.w(), q.x(),
+        q.y(), q.z(), 0.5 + 0.5 * std::sin(t * 11), i % 37 == 0 ? 1 : 0);
     t += 0.001 + 0.0004 * std::sin(i * 2.3);
   }
   const double dt = 0.01;
