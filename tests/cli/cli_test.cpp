@@ -43,9 +43,12 @@ Result Exec(const std::string& args) {
 class CliTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    // The process id keeps two test runs (two build trees) on one machine out of each other's
+    // way: one run's TearDown must not remove the folder the other is writing.
     dir_ = fs::temp_directory_path() /
            ("arthrosim_cli_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
