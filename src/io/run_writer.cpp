@@ -1,6 +1,7 @@
 #include "arthrosim/io/run_writer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <filesystem>
 #include <limits>
@@ -41,11 +42,11 @@ template <class F>
 void RunWriter::Impl::ForEachSeries(F f) {
   for (BodyOut& b : bodies) {
     ForEach(b.fields, f);
-    f(b.node_count), f(b.element_count), f(b.alive_elements), f(b.xdmf_points);
+    f(b.node_count), f(b.element_count), f(b.alive_elements), f(b.positions);
   }
   for (ThreadOut& t : threads) {
     ForEach(t.fields, f);
-    f(t.node_count), f(t.alive_segments), f(t.xdmf_points);
+    f(t.node_count), f(t.alive_segments), f(t.positions);
   }
   for (BoneOut& b : bones) f(b.vertices), f(b.triangles), ForEach(b.fields, f);
   for (ToolOut& o : tools) ForEach(o.fields, f), f(o.active), f(o.slot);
@@ -142,7 +143,8 @@ void RunWriter::Impl::WriteFrame(const State& s) {
   WriteRecords(s);
   WriteEvents(s);
   WriteFields(s, &root_fields);  // /time among them: written out last by WriteBlock
-  times.push_back(s.time_s);
+  ListFrame(s.time_s);
+  last_time_s = s.time_s;
   last_step = s.step;
   ++frames;
   if (frames - written_frames >= options.block_frames || BufferedBytes() >= options.block_bytes) {
@@ -170,8 +172,9 @@ void RunWriter::Impl::WriteBodies(const State& s) {
       if (sb.tet_alive[k] != 0) ints.insert(ints.end(), sb.tets[k].begin(), sb.tets[k].end());
     }
     b.alive_elements.Write(ints.data(), static_cast<std::int64_t>(ints.size() / 4));
-    floats.assign(sb.x.data(), sb.x.data() + sb.x.size());
-    b.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
+    layout::HoldPositions(sb.x, options.position_quantum_mm, options.position_tolerance_mm,
+                          &b.held);
+    b.positions.Write(b.held.data(), static_cast<std::int64_t>(n));
   }
 }
 
@@ -190,8 +193,9 @@ void RunWriter::Impl::WriteThreads(const State& s) {
       }
     }
     th.alive_segments.Write(ints.data(), static_cast<std::int64_t>(ints.size() / 2));
-    floats.assign(st.x.data(), st.x.data() + st.x.size());
-    th.xdmf_points.Write(floats.data(), static_cast<std::int64_t>(n));
+    layout::HoldPositions(st.x, options.position_quantum_mm, options.position_tolerance_mm,
+                          &th.held);
+    th.positions.Write(th.held.data(), static_cast<std::int64_t>(n));
   }
 }
 
@@ -250,39 +254,90 @@ void RunWriter::Impl::WriteEvents(const State& s) {
   events_end.Push(events_total);
 }
 
-void RunWriter::Impl::WriteXdmf() {
-  if (!options.write_xdmf) return;
-  xdmf_frames = frames;
-  XdmfRun run;
-  run.h5_name = std::filesystem::path(path).filename().string();
-  run.times = times;
+void RunWriter::Impl::CreateXdmf() {
+  listed = XdmfRun{};
+  listed.h5_name = std::filesystem::path(path).filename().string();
+  listed.interval_s = 0;  // frames are listed as they are written (ListFrame)
   auto series = [](const BlockSeries& b, int columns, bool is_float, int precision) {
     XdmfSeries s;
     s.dataset = b.path();
-    s.total_rows = b.total_rows();
     s.columns = columns;
     s.is_float = is_float;
     s.precision = precision;
-    s.offset = b.offsets();
-    s.count = b.counts();
     return s;
   };
   for (std::size_t i = 0; i < bodies.size(); ++i) {
-    run.meshes.push_back({"body:" + body_names[i], XdmfCell::kTetrahedron,
-                          series(bodies[i].alive_elements, 4, false, 4),
-                          series(bodies[i].xdmf_points, 3, true, 4)});
+    listed.meshes.push_back({"body:" + body_names[i], XdmfCell::kTetrahedron,
+                             series(bodies[i].alive_elements, 4, false, 4),
+                             series(bodies[i].positions, 3, true, 8)});
   }
   for (std::size_t i = 0; i < bones.size(); ++i) {
-    run.meshes.push_back({"bone:" + bone_names[i], XdmfCell::kTriangle,
-                          series(bones[i].triangles, 3, false, 4),
-                          series(bones[i].vertices, 3, true, 8)});
+    listed.meshes.push_back({"bone:" + bone_names[i], XdmfCell::kTriangle,
+                             series(bones[i].triangles, 3, false, 4),
+                             series(bones[i].vertices, 3, true, 8)});
   }
   for (std::size_t i = 0; i < threads.size(); ++i) {
-    run.meshes.push_back({"thread:" + thread_names[i], XdmfCell::kPolyline,
-                          series(threads[i].alive_segments, 2, false, 4),
-                          series(threads[i].xdmf_points, 3, true, 4)});
+    listed.meshes.push_back({"thread:" + thread_names[i], XdmfCell::kPolyline,
+                             series(threads[i].alive_segments, 2, false, 4),
+                             series(threads[i].positions, 3, true, 8)});
   }
-  WriteFileAtomically(xmf_path, XdmfText(run));
+}
+
+// Calls f(mesh series, block series) for the cells and points of every sidecar mesh.
+template <class F>
+void RunWriter::Impl::ForEachXdmfSeries(F f) {
+  std::size_t k = 0;
+  for (BodyOut& b : bodies) {
+    f(listed.meshes[k].cells, b.alive_elements), f(listed.meshes[k].points, b.positions);
+    ++k;
+  }
+  for (BoneOut& b : bones) {
+    f(listed.meshes[k].cells, b.triangles), f(listed.meshes[k].points, b.vertices);
+    ++k;
+  }
+  for (ThreadOut& t : threads) {
+    f(listed.meshes[k].cells, t.alive_segments), f(listed.meshes[k].points, t.positions);
+    ++k;
+  }
+}
+
+void RunWriter::Impl::ListFrame(double time_s) {
+  if (!options.write_xdmf) return;
+  const bool due =
+      listed.times.empty() || time_s - last_listed_s >= options.xdmf_interval_s * (1 - 1e-9);
+  if (!due) return;
+  last_listed_s = time_s;
+  listed.times.push_back(time_s);
+  listed.frame_index.push_back(frames);
+  ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries& b) {
+    x.offset.push_back(b.last_offset());
+    x.count.push_back(b.last_count());
+  });
+}
+
+void RunWriter::Impl::WriteXdmf() {
+  if (!options.write_xdmf) return;
+  xdmf_frames = frames;
+  ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries& b) { x.total_rows = b.total_rows(); });
+  // The last frame is always listed: added for this write when it was not due.
+  const bool add_last = listed.frame_index.back() != frames - 1;
+  if (add_last) {
+    listed.times.push_back(last_time_s);
+    listed.frame_index.push_back(frames - 1);
+    ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries& b) {
+      x.offset.push_back(b.last_offset());
+      x.count.push_back(b.last_count());
+    });
+  }
+  WriteXdmfFile(xmf_path, listed);
+  if (add_last) {
+    listed.times.pop_back();
+    listed.frame_index.pop_back();
+    ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries&) {
+      x.offset.pop_back();
+      x.count.pop_back();
+    });
+  }
 }
 
 // ---- public ---------------------------------------------------------------------------------
@@ -304,6 +359,14 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
     throw std::invalid_argument("RunWriter: deflate levels must be in 0..9");
   }
   if (options.block_frames < 1) throw std::invalid_argument("RunWriter: block_frames must be >= 1");
+  int exponent = 0;
+  const double mantissa = std::frexp(options.position_quantum_mm, &exponent);
+  if (options.position_quantum_mm < 0 || (options.position_quantum_mm > 0 && mantissa != 0.5)) {
+    throw std::invalid_argument("RunWriter: position_quantum_mm must be 0 or a power of two");
+  }
+  if (!(options.position_tolerance_mm >= 0)) {
+    throw std::invalid_argument("RunWriter: position_tolerance_mm must be >= 0");
+  }
   CheckNames(model, "bodies.name", model.soft_bodies);
   CheckNames(model, "bodies.name", model.threads);
   CheckNames(model, "bodies.name", model.bones);
@@ -330,6 +393,7 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
   }
   try {
     m.CreateLayout(model, initial);
+    m.CreateXdmf();
     m.file.StartSwmrWrite();  // from here on no object may be created
     m.WriteFrame(initial);
     m.WriteBlock();
@@ -378,7 +442,7 @@ void RunWriter::Flush() {
   m.WriteBlock();
   m.file.Flush();
   m.flushed = m.frames;
-  m.last_flush_time = m.times.empty() ? 0.0 : m.times.back();
+  m.last_flush_time = m.last_time_s;
   // The sidecar is rewritten whole (every frame's entry names the datasets' current sizes), so
   // rewriting it at every flush would cost O(frames^2) over a long session: beyond
   // `xdmf_every_flush_frames` frames it is rewritten once it lags by the growth fraction, and

@@ -16,6 +16,7 @@
 #include "arthrosim/io/hdf5.h"
 #include "arthrosim/io/hdf5_layout.h"
 #include "arthrosim/io/run_writer.h"
+#include "arthrosim/io/xdmf.h"
 #include "run_series.h"
 #include "state_datasets.h"
 
@@ -140,13 +141,15 @@ struct BodyOut {
   FrameSeries node_count, element_count;
   h5::Dataset elements;
   std::vector<mesh::Tet> written;  // rows of /elements so far (append-only check)
-  BlockSeries alive_elements, xdmf_points;
+  BlockSeries alive_elements, positions;
+  std::vector<double> held;  // positions as stored (quantised, held within the tolerance)
 };
 
 struct ThreadOut {
   FieldSet fields;
   FrameSeries node_count;
-  BlockSeries alive_segments, xdmf_points;
+  BlockSeries alive_segments, positions;
+  std::vector<double> held;  // positions as stored (quantised, held within the tolerance)
 };
 
 struct BoneOut {
@@ -196,11 +199,14 @@ struct RunWriter::Impl {
   double last_flush_time = 0;
   std::vector<layout::EventRecord> pending_events;  // recorded since the last frame
   std::vector<layout::EventRecord> frame_events;    // of buffered frames, not yet in the file
-  std::vector<double> times;                        // mirror of /time for the .xmf
+  double last_time_s = 0;                           // of the last frame
+  // The sidecar's frames (listed XdmfRun::interval_s apart: memory grows by ~10 entries per
+  // simulated second, not 50) and their blocks; the series' total_rows are set when written.
+  XdmfRun listed;
+  double last_listed_s = 0;
 
   // Scratch buffers reused every frame.
   std::vector<std::int32_t> ints;
-  std::vector<float> floats;
   std::vector<layout::ConstraintRecord> records;
   std::vector<layout::ToolContactRecord> contact_records;
   std::vector<double> record_rows;
@@ -229,6 +235,13 @@ struct RunWriter::Impl {
   template <class F>
   void ForEachSeries(F f);
   std::size_t BufferedBytes();
+  /// Names the sidecar's meshes and series (after the layout is created).
+  void CreateXdmf();
+  /// Calls f(sidecar series, block series) for the cells and points of every sidecar mesh.
+  template <class F>
+  void ForEachXdmfSeries(F f);
+  /// Adds the frame just written to `listed` when it is due.
+  void ListFrame(double time_s);
   void WriteXdmf();
 };
 
