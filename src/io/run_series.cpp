@@ -16,6 +16,10 @@ void FrameSeries::Create(h5::Group& g, const std::string& name, hid_t file_type,
   dims.insert(dims.end(), row.begin(), row.end());
   const std::size_t file_bytes = H5Tget_size(file_type);
   h5::DatasetSpec spec = h5::GrowingSpec(dims, file_bytes, std::move(also_grow));
+  // At most kChunkFrames frames per chunk: every flush rewrites the part-filled chunk of each
+  // compressed dataset at a new place in the file (the old one is lost: HDF5 reuses little of
+  // it), so long chunks of small rows wasted about a third of the file.
+  spec.chunk[0] = std::min(spec.chunk[0], kChunkFrames);
   spec.deflate = deflate;
   spec.fill = fill;
   ds_ = g.CreateDataset(name, file_type, spec);

@@ -22,6 +22,8 @@ namespace arthrosim::io::detail {
 class FrameSeries {
  public:
   static constexpr int kMaxRank = 4;
+  /// Frames per chunk at most (~2.5 s at 50 frames/s).
+  static constexpr hsize_t kChunkFrames = 128;
 
   /// Creates `name` in `g` with initial row shape `row`; frames are given in `mem_type`.
   void Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type,
