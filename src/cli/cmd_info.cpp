@@ -66,10 +66,16 @@ void AddInfoCommand(CLI::App* app, int* exit_code) {
   cmd->add_flag("--write-xdmf", *write_xdmf,
                 "Run file: (re)write its ParaView sidecar <run>.xmf from the file (e.g. after a "
                 "killed run)");
-  cmd->callback([path, write_xdmf, exit_code] {
+  auto write_xdmf2 = std::make_shared<bool>(false);
+  cmd->add_flag("--write-xdmf2", *write_xdmf2,
+                "Run file: write <run>.xdmf2.xmf, the sidecar for ParaView's legacy XDMFReader");
+  cmd->callback([path, write_xdmf, write_xdmf2, exit_code] {
     const std::string ext = std::filesystem::path(*path).extension().string();
     if (*write_xdmf && ext != ".h5" && ext != ".hdf5") {
       throw InputError(*path, 0, "--write-xdmf", "needs a run file (.h5)");
+    }
+    if (*write_xdmf2 && ext != ".h5" && ext != ".hdf5") {
+      throw InputError(*path, 0, "--write-xdmf2", "needs a run file (.h5)");
     }
     if (ext == ".yaml" || ext == ".yml") {
       PrintScenario(*path);
@@ -80,6 +86,12 @@ void AddInfoCommand(CLI::App* app, int* exit_code) {
       if (*write_xdmf) {
         const std::string xmf = io::XdmfPathFor(*path);
         io::WriteFileAtomically(xmf, io::XdmfText(io::XdmfRunFromFile(*path)));
+        fmt::print("wrote {}\n", xmf);
+      }
+      if (*write_xdmf2) {
+        const std::string xmf = io::XdmfPathFor(*path, io::XdmfDialect::kXdmf2);
+        io::WriteFileAtomically(xmf,
+                                io::XdmfText(io::XdmfRunFromFile(*path), io::XdmfDialect::kXdmf2));
         fmt::print("wrote {}\n", xmf);
       }
     } else {

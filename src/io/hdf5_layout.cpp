@@ -1,6 +1,7 @@
 #include "arthrosim/io/hdf5_layout.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 
@@ -227,6 +228,30 @@ ToolContact FromRecord(const ToolContactRecord& r) {
   c.body = r.body;
   c.position_mm = Vec3(r.position_mm[0], r.position_mm[1], r.position_mm[2]);
   return c;
+}
+
+void HoldPositions(const Points& x, double quantum_mm, double tolerance_mm,
+                   std::vector<double>* held) {
+  const auto n = static_cast<std::size_t>(x.size());
+  const double* p = x.data();
+  auto round = [quantum_mm](double v) {
+    // quantum_mm is a power of two: the division and product are exact.
+    return quantum_mm > 0 ? std::nearbyint(v / quantum_mm) * quantum_mm : v;
+  };
+  if (held->size() != n) {
+    held->resize(n);
+    for (std::size_t i = 0; i < n; ++i) (*held)[i] = round(p[i]);
+    return;
+  }
+  double* h = held->data();
+  for (std::size_t i = 0; i + 2 < n; i += 3) {
+    // !(d <= tol) also rewrites a NaN coordinate.
+    const bool keep = std::abs(p[i] - h[i]) <= tolerance_mm &&
+                      std::abs(p[i + 1] - h[i + 1]) <= tolerance_mm &&
+                      std::abs(p[i + 2] - h[i + 2]) <= tolerance_mm;
+    if (keep) continue;
+    for (std::size_t k = i; k < i + 3; ++k) h[k] = round(p[k]);
+  }
 }
 
 }  // namespace arthrosim::io::layout

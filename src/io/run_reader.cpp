@@ -152,14 +152,23 @@ struct BodyIn {
   h5::Dataset node_count_ds, element_count_ds, elements;
   std::vector<std::int64_t> node_count, element_count;
   std::vector<mesh::Tet> tets;  // all rows of /elements
-  Blocks alive_elements;
+  Blocks alive_elements, positions;
 };
 
 struct ThreadIn {
   FieldsIn fields;
   h5::Dataset node_count_ds;
   std::vector<std::int64_t> node_count;
+  Blocks positions;
 };
+
+// Frame t's block of a positions series as 3 x n points.
+void ReadPoints(const Blocks& b, std::size_t t, Points* x) {
+  const auto off = static_cast<hsize_t>(b.offset[t]);
+  const auto n = static_cast<hsize_t>(b.count[t]);
+  x->resize(3, static_cast<Eigen::Index>(n));
+  if (n > 0) b.data.Read({off, 0}, {n, 3}, H5T_NATIVE_DOUBLE, x->data());
+}
 
 struct BoneIn {
   FieldsIn fields;
@@ -198,6 +207,15 @@ void RunReader::Impl::Open() {
   if (!root.HasAttr("format") || root.AttrString("format") != layout::kFormatName) {
     throw InputError(path, 0, "", "not an arthrosim run file (root attribute 'format')");
   }
+  if (!root.HasAttr("format_version") || root.AttrInt("format_version") != layout::kFormatVersion) {
+    throw InputError(
+        path, 0, "format_version",
+        "run file format version " +
+            (root.HasAttr("format_version") ? std::to_string(root.AttrInt("format_version"))
+                                            : std::string("(none)")) +
+            ", this build reads version " + std::to_string(layout::kFormatVersion) +
+            " (docs/hdf5-layout.md); rewrite it by running its scenario again");
+  }
   info.scenario_name = root.AttrString("scenario_name");
   info.scenario_sha256 = root.AttrString("scenario_sha256");
   info.arthrosim_version = root.AttrString("arthrosim_version");
@@ -214,6 +232,7 @@ void RunReader::Impl::Open() {
   };
   const State sample;
   const SoftBodyState body;
+  const ThreadState thread;
   const mesh::TriMesh surface;
   OpenFields(root, sample, &root_fields);
   frames_of(root_fields);
@@ -231,12 +250,14 @@ void RunReader::Impl::Open() {
     b.element_count_ds = g.OpenDataset(layout::kElementCount);
     b.elements = g.OpenDataset(FieldOf(body, body.tets).name, kChunkCache);
     b.alive_elements.Open(g, layout::kAliveElements);
+    b.positions.Open(g, FieldOf(body, body.x).name);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kThreads)) {
     info.threads.push_back(layout::LeafName(g.path()));
     ThreadIn& t = threads.emplace_back();
-    OpenFields(g, ThreadState{}, &t.fields);
+    OpenFields(g, thread, &t.fields);
     t.node_count_ds = g.OpenDataset(layout::kNodeCount);
+    t.positions.Open(g, FieldOf(thread, thread.x).name);
   }
   for (const h5::Group& g : layout::OrderedGroups(root, layout::kBones)) {
     info.bones.push_back(layout::LeafName(g.path()));
@@ -255,14 +276,17 @@ void RunReader::Impl::Open() {
   constraints.Open(root.OpenGroup(layout::kConstraints), layout::kRows);
   for (BodyIn& b : bodies) {
     frames_of(b.fields);
-    for (h5::Dataset* d : {&b.node_count_ds, &b.element_count_ds, &b.alive_elements.offset_ds,
-                           &b.alive_elements.count_ds}) {
+    for (h5::Dataset* d :
+         {&b.node_count_ds, &b.element_count_ds, &b.alive_elements.offset_ds,
+          &b.alive_elements.count_ds, &b.positions.offset_ds, &b.positions.count_ds}) {
       frame(*d);
     }
   }
   for (ThreadIn& t : threads) {
     frames_of(t.fields);
-    frame(t.node_count_ds);
+    for (h5::Dataset* d : {&t.node_count_ds, &t.positions.offset_ds, &t.positions.count_ds}) {
+      frame(*d);
+    }
   }
   for (BoneIn& b : bones) {
     frames_of(b.fields);
@@ -300,8 +324,12 @@ void RunReader::Impl::Load() {
     std::copy(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(4 * b.tets.size()),
               b.tets.empty() ? nullptr : b.tets[0].data());
     b.alive_elements.Load();
+    b.positions.Load();
   }
-  for (ThreadIn& t : threads) t.node_count = t.node_count_ds.ReadAll<std::int64_t>();
+  for (ThreadIn& t : threads) {
+    t.node_count = t.node_count_ds.ReadAll<std::int64_t>();
+    t.positions.Load();
+  }
   for (BoneIn& b : bones) {
     b.vertices.Load();
     b.triangles.Load();
@@ -338,7 +366,9 @@ std::int64_t RunReader::Refresh() {
   for (BodyIn& b : m.bodies) {
     b.elements.Refresh();
     b.alive_elements.data.Refresh();
+    b.positions.data.Refresh();
   }
+  for (ThreadIn& t : m.threads) t.positions.data.Refresh();
   for (BoneIn& b : m.bones) {
     b.vertices.data.Refresh();
     b.triangles.data.Refresh();
@@ -379,6 +409,7 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     const auto n = static_cast<hsize_t>(b.node_count[t]);
     const auto e = static_cast<std::size_t>(b.element_count[t]);
     ReadFields(b.fields, th, -1, n, e, &s);
+    ReadPoints(b.positions, t, &s.x);
     s.tets.assign(b.tets.begin(), b.tets.begin() + static_cast<std::ptrdiff_t>(e));
   }
 
@@ -387,6 +418,7 @@ void RunReader::ReadFrame(std::int64_t k, State& out) const {
     const ThreadIn& d = m.threads[i];
     const auto n = static_cast<hsize_t>(d.node_count[t]);
     ReadFields(d.fields, th, -1, n, 0, &out.threads[i]);
+    ReadPoints(d.positions, t, &out.threads[i].x);
   }
 
   out.bones.resize(m.bones.size());

@@ -16,6 +16,10 @@ void FrameSeries::Create(h5::Group& g, const std::string& name, hid_t file_type,
   dims.insert(dims.end(), row.begin(), row.end());
   const std::size_t file_bytes = H5Tget_size(file_type);
   h5::DatasetSpec spec = h5::GrowingSpec(dims, file_bytes, std::move(also_grow));
+  // At most kChunkFrames frames per chunk: every flush rewrites the part-filled chunk of each
+  // compressed dataset at a new place in the file (the old one is lost: HDF5 reuses little of
+  // it), so long chunks of small rows wasted about a third of the file.
+  spec.chunk[0] = std::min(spec.chunk[0], kChunkFrames);
   spec.deflate = deflate;
   spec.fill = fill;
   ds_ = g.CreateDataset(name, file_type, spec);
@@ -68,7 +72,7 @@ void FrameSeries::WriteOut() {
 }
 
 void BlockSeries::Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type,
-                         int columns, std::size_t row_bytes, int deflate) {
+                         int columns, std::size_t row_bytes, int deflate, hsize_t chunk_rows) {
   row_bytes_ = row_bytes;
   mem_type_ = mem_type;
   columns_ = columns;
@@ -77,6 +81,7 @@ void BlockSeries::Create(h5::Group& g, const std::string& name, hid_t file_type,
   if (columns > 0) dims.push_back(static_cast<hsize_t>(columns));
   if (columns == 0) element_bytes = row_bytes;  // compound rows: chunked by their memory size
   h5::DatasetSpec spec = h5::GrowingSpec(dims, element_bytes);
+  if (chunk_rows > 0) spec.chunk[0] = chunk_rows;
   spec.deflate = deflate;
   data_ = g.CreateDataset(name, file_type, spec);
   offset_.Create(g, layout::OffsetName(name), H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr,
@@ -97,15 +102,12 @@ void BlockSeries::Write(const void* data, std::int64_t rows) {
     last_in_pending_ = true;
     has_last_ = true;
     pending_.insert(pending_.end(), p, p + bytes);
-    offsets_.push_back(total_);
-    counts_.push_back(rows);
+    last_offset_ = total_;
+    last_count_ = rows;
     total_ += rows;
-  } else {
-    offsets_.push_back(offsets_.back());
-    counts_.push_back(counts_.back());
   }
-  offset_.Push(offsets_.back());
-  count_.Push(counts_.back());
+  offset_.Push(last_offset_);
+  count_.Push(last_count_);
 }
 
 void BlockSeries::WriteOut() {

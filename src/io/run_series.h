@@ -22,6 +22,8 @@ namespace arthrosim::io::detail {
 class FrameSeries {
  public:
   static constexpr int kMaxRank = 4;
+  /// Frames per chunk at most (~2.5 s at 50 frames/s).
+  static constexpr hsize_t kChunkFrames = 128;
 
   /// Creates `name` in `g` with initial row shape `row`; frames are given in `mem_type`.
   void Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type,
@@ -60,16 +62,18 @@ class BlockSeries {
  public:
   /// `columns` == 0 makes a 1-D dataset of `file_type` rows (compound records); rows are given
   /// in `mem_type`, `row_bytes` each.
+  /// `chunk_rows` > 0 sets the rows per chunk (default ~64 KiB of rows).
   void Create(h5::Group& g, const std::string& name, hid_t file_type, hid_t mem_type, int columns,
-              std::size_t row_bytes, int deflate);
+              std::size_t row_bytes, int deflate, hsize_t chunk_rows = 0);
   /// Buffers the next frame's block: `rows` rows at `data`.
   void Write(const void* data, std::int64_t rows);
   /// Writes the buffered rows, then the buffered offsets and counts (rows before references).
   void WriteOut();
 
   std::int64_t total_rows() const { return total_; }
-  const std::vector<std::int64_t>& offsets() const { return offsets_; }
-  const std::vector<std::int64_t>& counts() const { return counts_; }
+  /// The last frame's block: first row and row count.
+  std::int64_t last_offset() const { return last_offset_; }
+  std::int64_t last_count() const { return last_count_; }
   const std::string& path() const { return data_.path(); }
   std::size_t buffered_bytes() const {
     return pending_.size() + offset_.buffered_bytes() + count_.buffered_bytes();
@@ -88,8 +92,8 @@ class BlockSeries {
   bool has_last_ = false, last_in_pending_ = false;
   std::size_t last_pos_ = 0, last_bytes_ = 0;
   std::vector<unsigned char> last_;
-  std::vector<unsigned char> pending_;          // new rows not yet written
-  std::vector<std::int64_t> offsets_, counts_;  // mirrors of the index datasets (for XDMF)
+  std::vector<unsigned char> pending_;             // new rows not yet written
+  std::int64_t last_offset_ = 0, last_count_ = 0;  // the last frame's block
 };
 
 }  // namespace arthrosim::io::detail

@@ -23,17 +23,28 @@ def check(cond, what):
 
 
 def slab(item, h, h5name, columns):
-    """Returns (start, count, rows) of a HyperSlab DataItem after checking its form."""
-    check(item.get("ItemType") == "HyperSlab", "HyperSlab item")
-    sel, data = item.findall("DataItem")
-    check(sel.get("Dimensions") == "3 2" and sel.get("Format") == "XML", "selection item")
-    s0, s1, st0, st1, c0, c1 = [int(x) for x in sel.text.split()]
-    check(s1 == 0 and st0 == 1 and st1 == 1 and c1 == columns, f"2-D row selection {sel.text}")
-    check(item.get("Dimensions") == f"{c0} {columns}", "slab Dimensions")
-    fname, dpath = data.text.strip().split(":", 1)
+    """Returns the rows a frame's data item selects, after checking its form: an HDF item with an
+    inline selection (file:/path|start:stride:count:dataspace, the Xdmf3 form) or a HyperSlab
+    item (the Xdmf2 form)."""
+    if item.get("ItemType") == "HyperSlab":
+        sel, data = item.findall("DataItem")
+        check(sel.get("Dimensions") == "3 2" and sel.get("Format") == "XML", "selection item")
+        s0, s1, st0, st1, c0, c1 = [int(x) for x in sel.text.split()]
+        fname, dpath = data.text.strip().split(":", 1)
+        rows, cols = [int(x) for x in data.get("Dimensions").split()]
+    else:
+        check(item.get("Format") == "HDF", "HDF item")
+        ref, selection = item.text.strip().split("|")
+        fname, dpath = ref.split(":", 1)
+        start, stride, count, space = [[int(x) for x in p.split()] for p in selection.split(":")]
+        s0, s1 = start
+        st0, st1 = stride
+        c0, c1 = count
+        rows, cols = space
+    check(s1 == 0 and st0 == 1 and st1 == 1 and c1 == columns, f"2-D row selection {s0} {c0}")
+    check(item.get("Dimensions") == f"{c0} {columns}", "item Dimensions")
     check(fname == h5name and not os.path.isabs(fname), f"relative HDF5 reference {fname}")
     ds = h[dpath]
-    rows, cols = [int(x) for x in data.get("Dimensions").split()]
     check(rows == ds.shape[0] and cols == ds.shape[1] == columns,
           f"{dpath}: Dimensions {rows} {cols} vs dataset {ds.shape}")
     check(s0 >= 0 and s0 + c0 <= ds.shape[0], f"{dpath}: rows {s0}+{c0} beyond {ds.shape[0]}")
@@ -50,9 +61,12 @@ def main():
     h5name = os.path.basename(run)
     with h5py.File(run, "r") as h:
         T = h["time"].shape[0]
-        check(len(frames) == T, f"{len(frames)} frames in XMF, {T} in HDF5")
+        # Frames are listed at least XdmfRun::interval_s apart, the first and the last always.
+        listed = [int(fr.get("Name")[len("frame"):]) for fr in frames]
+        check(listed and listed[0] == 0 and listed[-1] == T - 1, f"first/last frame {listed[:3]}")
+        check(all(a < b for a, b in zip(listed, listed[1:])), "frames increase")
         grids_seen = 0
-        for t, fr in enumerate(frames):
+        for t, fr in zip(listed, frames):
             check(fr.get("CollectionType") == "Spatial", "spatial collection per frame")
             check(float(fr.find("Time").get("Value")) == h["time"][t], f"time of frame {t}")
             for g in fr.findall("Grid"):
@@ -71,7 +85,8 @@ def main():
                     cells = slab(topo.find("DataItem"), h, h5name, 4)
                     check(np.array_equal(cells, b["elements"][:e][alive]),
                           f"{name} frame {t}: cells are the alive elements")
-                    check(np.array_equal(points, b["positions"][t, :nn].astype(np.float32)),
+                    o = b["positions_offset"][t]
+                    check(np.array_equal(points, b["positions"][o:o + nn]),
                           f"{name} frame {t}: points")
                 elif kind == "bone":
                     b = h["bones/" + name]

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <new>
+#include <string>
 
 #include "../support/counting_new.h"
 #include "arthrosim/io/run_reader.h"
@@ -26,9 +28,11 @@ TEST(RunAllocation, SteadyStateAppendDoesNotAllocate) {
   const std::string path = testing::TestDir("allocation") + "/run.h5";
   RunWriterOptions options;
   options.block_frames = 64;
-  // The per-frame mirrors kept for the .xmf (times, block offsets/counts) are std::vectors that
-  // double their capacity at powers of two: frames 129..255 (sizes 130..256) fit in 256 slots,
-  // so the window below sees no mirror growth. It includes the block written at 192 frames.
+  // The mirrors kept for the .xmf (times, frame numbers, block offsets/counts of the listed
+  // frames) are std::vectors that double their capacity at powers of two: with every frame
+  // listed, frames 129..255 (sizes 130..256) fit in 256 slots, so the window below sees no
+  // mirror growth. It includes the block written at 192 frames.
+  options.xdmf_interval_s = 0;
   constexpr int kFirst = 129, kEnd = 256;
   std::vector<State> frames;
   for (int f = kFirst; f < kEnd; ++f) frames.push_back(MakeFrame(model, f));
@@ -47,8 +51,52 @@ TEST(RunAllocation, SteadyStateAppendDoesNotAllocate) {
   w.Close();
   const RunReader r(path);
   ASSERT_EQ(r.frame_count(), kEnd);
-  EXPECT_TRUE(BitwiseEqual(r.Frame(kEnd - 1), frames.back()));
-  EXPECT_TRUE(BitwiseEqual(r.Frame(192), frames[192 - kFirst]));
+  EXPECT_TRUE(testing::EqualWithinPositionBound(r.Frame(kEnd - 1), frames.back()));
+  EXPECT_TRUE(testing::EqualWithinPositionBound(r.Frame(192), frames[192 - kFirst]));
+}
+
+// Resident memory of this process, kB (VmRSS of /proc/self/status; 0 if unavailable).
+long ResidentKb() {
+  std::ifstream in("/proc/self/status");
+  std::string key;
+  long kb = 0;
+  while (in >> key) {
+    if (key == "VmRSS:") {
+      in >> kb;
+      return kb;
+    }
+    in.ignore(1 << 10, '\n');
+  }
+  return 0;
+}
+
+// The writer's memory should not grow with the frames written: from frame 2 000 to 20 000 (40
+// to 400 simulated seconds at 50 frames per second, a flush every simulated second) resident
+// memory should grow by less than 1 MB. Disabled: NOT met yet. It grows by ~25 MB (HDF5 memory
+// allocated under H5Dwrite, live per valgrind massif, levelling off after ~8 000 frames here),
+// with or without flushes and the sidecar, with two-chunk chunk caches, a 4 MiB metadata cache
+// or capped HDF5 free lists. Enable it once the cause is found.
+TEST(RunMemory, DISABLED_WriterMemoryDoesNotGrowWithFrames) {
+  Model model = MakeModel();
+  model.options.flush_interval_s = 1.0;
+  const std::string path = testing::TestDir("memory") + "/run.h5";
+  std::vector<State> frames;
+  for (int f = 10; f < 20; ++f) frames.push_back(MakeFrame(model, f));  // after the splits
+  RunWriter w(path, model, MakeFrame(model, 0));
+  for (int f = 1; f < 10; ++f) w.Append(MakeFrame(model, f));
+  long at_2000 = 0;
+  for (int f = 10; f < 20000; ++f) {
+    State& s = frames[static_cast<std::size_t>(f % 10)];
+    s.step = 2 * f;
+    s.time_s = 0.02 * f;
+    w.Append(s);
+    if (f == 2000) at_2000 = ResidentKb();
+  }
+  const long at_20000 = ResidentKb();
+  if (at_2000 == 0) GTEST_SKIP() << "no /proc/self/status";
+  EXPECT_LT(at_20000 - at_2000, 1024)
+      << at_2000 << " kB at frame 2000, " << at_20000 << " kB at frame 20000";
+  w.Close();
 }
 
 }  // namespace

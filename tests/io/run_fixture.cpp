@@ -1,6 +1,8 @@
 #include "run_fixture.h"
 
 #include <sys/wait.h>
+#include <algorithm>
+#include <limits>
 
 #include <cstdlib>
 #include <filesystem>
@@ -255,6 +257,36 @@ std::string Python() {
 }
 int Status(int raw) { return raw == -1 ? -1 : (WIFEXITED(raw) ? WEXITSTATUS(raw) : -1); }
 }  // namespace
+
+double MaxPositionError(const State& a, const State& b) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (a.soft_bodies.size() != b.soft_bodies.size() || a.threads.size() != b.threads.size()) {
+    return kInf;
+  }
+  double worst = 0;
+  auto visit = [&](const Points& x, const Points& y) {
+    if (x.cols() != y.cols()) {
+      worst = kInf;
+    } else if (x.size() > 0) {
+      worst = std::max(worst, (x - y).cwiseAbs().maxCoeff());
+    }
+  };
+  for (std::size_t i = 0; i < a.soft_bodies.size(); ++i) {
+    visit(a.soft_bodies[i].x, b.soft_bodies[i].x);
+  }
+  for (std::size_t i = 0; i < a.threads.size(); ++i) visit(a.threads[i].x, b.threads[i].x);
+  return worst;
+}
+
+bool EqualWithinPositionBound(const State& got, const State& want, double bound_mm) {
+  if (!(MaxPositionError(got, want) <= bound_mm)) return false;
+  State same = got;
+  for (std::size_t i = 0; i < same.soft_bodies.size(); ++i) {
+    same.soft_bodies[i].x = want.soft_bodies[i].x;
+  }
+  for (std::size_t i = 0; i < same.threads.size(); ++i) same.threads[i].x = want.threads[i].x;
+  return BitwiseEqual(same, want);
+}
 
 bool HavePythonH5py() {
   return Status(std::system((Python() + " -c 'import h5py, numpy' 2>/dev/null").c_str())) == 0;

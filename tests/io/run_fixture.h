@@ -18,6 +18,17 @@ Model MakeModel();
 /// RunReader returns them, so that BitwiseEqual compares everything that is stored.
 State MakeFrame(const Model& model, int f);
 
+/// The default bound of stored positions: RunWriterOptions' position_tolerance_mm (it exceeds
+/// half the quantum).
+inline constexpr double kPositionBoundMm = 0.005;
+/// Largest per-coordinate difference between the soft-body and thread positions of a and b
+/// (infinity if their shapes differ).
+double MaxPositionError(const State& a, const State& b);
+/// True when `got` (read from a run file) equals `want` bit for bit except that soft-body and
+/// thread positions may differ by at most `bound_mm` per coordinate.
+bool EqualWithinPositionBound(const State& got, const State& want,
+                              double bound_mm = kPositionBoundMm);
+
 /// Directory for a test's files (created empty) below the build directory.
 std::string TestDir(const std::string& name);
 /// Runs tests/io/<script> with the Python that has h5py; returns the exit status (0 = ok).

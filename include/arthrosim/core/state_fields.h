@@ -59,7 +59,8 @@ concept FieldsOf = std::is_same_v<std::remove_const_t<S>, T>;
 template <class S, class V>
 requires FieldsOf<S, SoftBodyState>
 void VisitFields(S& b, V&& v) {
-  v(b.x, FieldInfo{"positions", "mm", FieldStore::kFrame, FieldDim::kNodes, FieldFill::kNaN, true});
+  v(b.x,
+    FieldInfo{"positions", "mm", FieldStore::kBlocks, FieldDim::kNodes, FieldFill::kNaN, true});
   v(b.v, FieldInfo{"velocities", "mm/s", FieldStore::kNone});
   v(b.x_rest, FieldInfo{"rest_positions", "mm", FieldStore::kNone});
   v(b.tets, FieldInfo{"elements", "", FieldStore::kAppend});
@@ -97,7 +98,8 @@ void VisitFields(S& b, V&& v) {
 template <class S, class V>
 requires FieldsOf<S, ThreadState>
 void VisitFields(S& t, V&& v) {
-  v(t.x, FieldInfo{"positions", "mm", FieldStore::kFrame, FieldDim::kNodes, FieldFill::kNaN, true});
+  v(t.x,
+    FieldInfo{"positions", "mm", FieldStore::kBlocks, FieldDim::kNodes, FieldFill::kNaN, true});
   v(t.v, FieldInfo{"velocities", "mm/s", FieldStore::kNone});
   v(t.node_alive,
     FieldInfo{"node_alive", "", FieldStore::kFrame, FieldDim::kNodes, FieldFill::kZero});

@@ -10,7 +10,7 @@
 
 namespace arthrosim::io::layout {
 
-inline constexpr std::int64_t kFormatVersion = 1;
+inline constexpr std::int64_t kFormatVersion = 2;  ///< 2: positions as quantised block series
 inline constexpr const char* kFormatName = "arthrosim-run";
 
 // Top-level groups. Each body / bone / thread / tool group carries an int attribute "index":
@@ -33,6 +33,14 @@ inline constexpr int kHoleColumns = 12;
 /// Columns of an /anchors/rows row: bone, hole, position xyz (mm), axis xyz, depth below the
 /// cortex (mm), insertion angle (deg).
 inline constexpr int kAnchorColumns = 10;
+
+/// Updates `held` (the stored copy of positions x, 3 x n column-major) to what the next frame
+/// stores: every coordinate rounded to a multiple of `quantum_mm` (0: exact); a node keeps its
+/// stored value while none of its coordinates differs from it by more than `tolerance_mm`. A
+/// new node count rewrites every node. Afterwards every stored coordinate is within
+/// max(tolerance_mm, quantum_mm / 2) of x's.
+void HoldPositions(const Points& x, double quantum_mm, double tolerance_mm,
+                   std::vector<double>* held);
 
 /// Appends the row of a hole (kHoleColumns values) to *rows.
 inline void AppendHoleRow(const BoneHole& h, std::vector<double>* rows) {
@@ -80,7 +88,6 @@ inline constexpr const char* kNodeCount = "node_count";
 inline constexpr const char* kElementCount = "element_count";
 inline constexpr const char* kAliveElements = "alive_elements";
 inline constexpr const char* kAliveSegments = "alive_segments";
-inline constexpr const char* kXdmfPoints = "xdmf_points";
 inline constexpr const char* kActive = "active";  ///< /tools/<instrument>: inserted in a slot
 inline constexpr const char* kSlot = "slot";      ///< /tools/<instrument>: the slot holding it
 inline constexpr const char* kRows = "rows";      ///< the records of /constraints, /tool_contacts

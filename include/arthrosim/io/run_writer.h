@@ -12,6 +12,7 @@
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/io/xdmf.h"
 
 namespace arthrosim::io {
 
@@ -19,15 +20,26 @@ struct RunWriterOptions {
   /// zlib level 0..9 (with byte shuffle) for integer, mask, index, record and small float
   /// datasets: they shrink many-fold at little cost.
   int deflate_level = 4;
-  /// zlib level for the bulk coordinates (positions, xdmf_points, bone vertices). 0 by default:
-  /// float64 coordinates shrink only ~13% and zlib costs ~35 ms per 20k-node frame.
-  int float_deflate_level = 0;
+  /// zlib level (with byte shuffle) for the bulk coordinates (positions, bone vertices). The
+  /// quantised positions' low mantissa bytes are zero and unmoved nodes repeat the previous
+  /// block's bytes, so they shrink ~10-fold.
+  int float_deflate_level = 4;
+  /// Soft-body and thread node positions are stored rounded to multiples of this (a power of
+  /// two, mm; 2^-10 mm ~ 0.98 um), 0 = exact.
+  double position_quantum_mm = 1.0 / 1024.0;
+  /// A stored node keeps its value while none of its coordinates moved more than this (mm) from
+  /// it; a body's positions block is stored again only when a node changed. Every stored
+  /// coordinate is within max(position_tolerance_mm, position_quantum_mm / 2) of the State's.
+  /// 0 with position_quantum_mm 0: positions read back bit-identical.
+  double position_tolerance_mm = 0.005;
   bool write_xdmf = true;  ///< keep <path without extension>.xmf next to the file
   /// The sidecar is rewritten at every flush while the run has at most this many frames; later
   /// only once the frames written since its last rewrite reach `xdmf_growth` times the frames
   /// it holds (a whole rewrite each time: O(frames) in total, not O(frames^2)), and at Close.
   std::int64_t xdmf_every_flush_frames = 1000;
   double xdmf_growth = 0.25;
+  /// Simulated time between the frames the sidecar lists (XdmfRun::interval_s; 0 = every frame).
+  double xdmf_interval_s = kXdmfIntervalS;
   /// Frames are buffered in memory and written as blocks (one extent change and one write per
   /// dataset per block: HDF5's cost is per call). A block is written at every flush, at Close()
   /// and when it holds `block_frames` frames or `block_bytes` bytes. 1 = every frame at once.
