@@ -228,6 +228,7 @@ void PassThread(const Model& model, int slot, const StepContext& context, State*
     c.b.index = body;
     TetAt(*state, body, th.x.col(held + step * j), &c.b.nodes, &c.b.weights);
     c.stiffness_n_per_mm = opt.stitch_stiffness_n_per_mm;
+    c.slide_friction_n = opt.stitch_friction_n;
     physics::AddConstraint(state, std::move(c));
   }
   const double edge_mm = DistanceToTendonEdge(model, *state, body, entry);

@@ -81,6 +81,8 @@ h5::Handle ConstraintType(bool packed) {
             offsetof(ConstraintRecord, stiffness_n_per_mm), H5T_NATIVE_DOUBLE);
   H5Tinsert(t.get(), FieldOf(constraint, constraint.rest_length_mm).name,
             offsetof(ConstraintRecord, rest_length_mm), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t.get(), FieldOf(constraint, constraint.slide_friction_n).name,
+            offsetof(ConstraintRecord, slide_friction_n), H5T_NATIVE_DOUBLE);
   H5Tinsert(t.get(), FieldOf(constraint, constraint.a).name, offsetof(ConstraintRecord, a),
             end.get());
   H5Tinsert(t.get(), FieldOf(constraint, constraint.b).name, offsetof(ConstraintRecord, b),
@@ -195,6 +197,7 @@ ConstraintRecord ToRecord(const SpringConstraint& c) {
   CopyFixed(c.tag, r.tag, kTagChars);
   r.stiffness_n_per_mm = c.stiffness_n_per_mm;
   r.rest_length_mm = c.rest_length_mm;
+  r.slide_friction_n = c.slide_friction_n;
   ToEnd(c.a, r.a);
   ToEnd(c.b, r.b);
   return r;
@@ -206,6 +209,7 @@ SpringConstraint FromRecord(const ConstraintRecord& r) {
   c.tag = ReadFixed(r.tag, kTagChars);
   c.stiffness_n_per_mm = r.stiffness_n_per_mm;
   c.rest_length_mm = r.rest_length_mm;
+  c.slide_friction_n = r.slide_friction_n;
   c.a = FromEnd(r.a);
   c.b = FromEnd(r.b);
   return c;

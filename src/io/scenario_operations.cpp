@@ -117,9 +117,10 @@ void ReadGrasp(const YamlSection& ops, const char* name, GraspOptions* o) {
 // Scorpion needle (docs/operations.md "Suturing").
 void ReadScorpionNeedle(const YamlSection& ops, ScorpionNeedleOptions* o) {
   if (!ops.Has("scorpion_needle")) return;
-  const YamlSection s(ops.reader(), ops.Get("scorpion_needle"), ops.Field("scorpion_needle"),
-                      {"dist_limit_1", "dist_limit_2", "node_spacing", "nodes_through",
-                       "tissue_stiffness", "thread_stiffness", "stitch_stiffness"});
+  const YamlSection s(
+      ops.reader(), ops.Get("scorpion_needle"), ops.Field("scorpion_needle"),
+      {"dist_limit_1", "dist_limit_2", "node_spacing", "nodes_through", "tissue_stiffness",
+       "thread_stiffness", "stitch_stiffness", "stitch_friction"});
   o->dist_limit_1_mm = s.Positive("dist_limit_1", o->dist_limit_1_mm);
   o->dist_limit_2_mm = s.Positive("dist_limit_2", o->dist_limit_2_mm);
   o->node_spacing_mm = s.Positive("node_spacing", o->node_spacing_mm);
@@ -127,6 +128,18 @@ void ReadScorpionNeedle(const YamlSection& ops, ScorpionNeedleOptions* o) {
   o->tissue_stiffness_n_per_mm = s.Positive("tissue_stiffness", o->tissue_stiffness_n_per_mm);
   o->thread_stiffness_n_per_mm = s.Positive("thread_stiffness", o->thread_stiffness_n_per_mm);
   o->stitch_stiffness_n_per_mm = s.Positive("stitch_stiffness", o->stitch_stiffness_n_per_mm);
+  o->stitch_friction_n = s.Number("stitch_friction", o->stitch_friction_n);
+}
+
+void ReadHook(const YamlSection& ops, HookOptions* o) {
+  if (!ops.Has("hook")) return;
+  const YamlSection s(ops.reader(), ops.Get("hook"), ops.Field("hook"),
+                      {"catch_reach", "dist_limit", "release_angle", "stiffness", "friction"});
+  o->catch_reach_mm = s.Positive("catch_reach", o->catch_reach_mm);
+  o->dist_limit_mm = s.Positive("dist_limit", o->dist_limit_mm);
+  o->release_angle_deg = s.Positive("release_angle", o->release_angle_deg);
+  o->stiffness_n_per_mm = s.Positive("stiffness", o->stiffness_n_per_mm);
+  o->friction_n = s.NonNegative("friction", o->friction_n);
 }
 
 }  // namespace
@@ -136,7 +149,7 @@ void ReadOperations(const YamlSection& root, Model* m) {
   OperationOptions& o = m->operations;
   const YamlSection ops(root.reader(), root.Get("operations"), "operations",
                         {"scissors", "cutter", "shaver", "electrocautery", "burr", "awl", "anchor",
-                         "grasper", "retriever", "scorpion_needle"});
+                         "grasper", "retriever", "scorpion_needle", "hook"});
   ReadScissors(ops, &o.scissors);
   ReadCutter(ops, &o.cutter);
   ReadSoftShaving(ops, "shaver", &o.shaver);
@@ -147,6 +160,7 @@ void ReadOperations(const YamlSection& root, Model* m) {
   ReadGrasp(ops, "grasper", &o.grasper);
   ReadGrasp(ops, "retriever", &o.retriever);
   ReadScorpionNeedle(ops, &o.scorpion_needle);
+  ReadHook(ops, &o.hook);
 }
 
 }  // namespace arthrosim::io

@@ -1,6 +1,7 @@
 #include "arthrosim/physics/constraints.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace arthrosim::physics {
@@ -131,6 +132,104 @@ void BuildPointSprings(const State& state, SpringSet* springs) {
       out.push_back(ps);
     }
   }
+}
+
+ConstraintEnd ThreadPointEnd(std::int32_t thread, double s) {
+  if (thread < 0 || !(s >= 0))
+    throw std::invalid_argument("thread point end needs a thread index >= 0 and s >= 0");
+  ConstraintEnd e;
+  e.kind = ConstraintEnd::Kind::kThread;
+  e.index = thread;
+  const double i = std::floor(s);
+  e.nodes[0] = static_cast<std::int32_t>(i);
+  e.weights[0] = 1.0 - (s - i);
+  if (s > i) {
+    e.nodes[1] = e.nodes[0] + 1;
+    e.weights[1] = s - i;
+  }
+  return e;
+}
+
+double ThreadEndParameter(const ConstraintEnd& end) {
+  const bool single = end.weights[1] == 0 && end.weights[2] == 0 && end.weights[3] == 0;
+  const bool pair = end.nodes[1] == end.nodes[0] + 1 && end.weights[2] == 0 &&
+                    end.weights[3] == 0 && std::abs(end.weights[0] + end.weights[1] - 1) < 1e-9;
+  if (end.kind != ConstraintEnd::Kind::kThread || end.nodes[0] < 0 || !(single || pair))
+    throw std::invalid_argument("constraint end is not a point along a thread");
+  return end.nodes[0] + (single ? 0.0 : end.weights[1]);
+}
+
+const ConstraintEnd* SlidingEnd(const SpringConstraint& c) {
+  if (!(c.slide_friction_n >= 0)) return nullptr;
+  if (c.a.kind == ConstraintEnd::Kind::kThread) return &c.a;
+  if (c.b.kind == ConstraintEnd::Kind::kThread) return &c.b;
+  return nullptr;
+}
+
+namespace {
+
+bool Alive(const ThreadState& t, int n) {
+  return n >= 0 && n < t.x.cols() &&
+         (t.node_alive.empty() || t.node_alive[static_cast<std::size_t>(n)] != 0);
+}
+
+// Moves arc parameter s by `distance_mm` along the chain (dir +1 toward higher node indices,
+// -1 lower), segment by segment over live segments; stops at a dead node or a chain end.
+double WalkAlong(const ThreadState& t, double s, int dir, double distance_mm) {
+  const int last = static_cast<int>(t.x.cols()) - 1;
+  while (distance_mm > 0) {
+    const double fl = std::floor(s);
+    const int seg =
+        dir > 0 ? static_cast<int>(fl) : (s > fl ? static_cast<int>(fl) : static_cast<int>(fl) - 1);
+    if (seg < 0 || seg + 1 > last || !Alive(t, seg) || !Alive(t, seg + 1)) break;
+    const double len = (t.x.col(seg + 1) - t.x.col(seg)).norm();
+    if (!(len > 0)) break;
+    const double room_mm = (dir > 0 ? seg + 1 - s : s - seg) * len;
+    if (distance_mm < room_mm) {
+      s += dir * distance_mm / len;
+      break;
+    }
+    s = dir > 0 ? seg + 1 : seg;
+    distance_mm -= room_mm;
+  }
+  return std::clamp(s, 0.0, static_cast<double>(last));
+}
+
+// New arc parameter of a sliding end `e` under its constraint's spring, or s if it holds.
+double SlidTo(const State& state, const SpringConstraint& c, const ConstraintEnd& e, double s) {
+  const ThreadState& t = state.threads[static_cast<std::size_t>(e.index)];
+  const int last = static_cast<int>(t.x.cols()) - 1;
+  if (last < 1 || !(c.stiffness_n_per_mm > 0)) return s;
+  const ConstraintEnd& other = &e == &c.a ? c.b : c.a;
+  const Vec3 d = EndPosition(state, other) - EndPosition(state, e);
+  const double len = d.norm();
+  if (!(len > c.rest_length_mm)) return s;
+  const Vec3 force_n = c.stiffness_n_per_mm * (len - c.rest_length_mm) / len * d;
+  const int seg = std::min(static_cast<int>(std::floor(s)), last - 1);
+  const Vec3 tangent = t.x.col(seg + 1) - t.x.col(seg);
+  if (!(tangent.norm() > 0)) return s;
+  const double along_n = force_n.dot(tangent.normalized());
+  const double excess_n = std::abs(along_n) - c.slide_friction_n;
+  if (!(excess_n > 0)) return s;
+  return WalkAlong(t, s, along_n > 0 ? 1 : -1, excess_n / c.stiffness_n_per_mm);
+}
+
+}  // namespace
+
+int SlideConstraintEnds(State* state) {
+  int moved = 0;
+  for (SpringConstraint& c : state->constraints) {
+    const ConstraintEnd* sliding = SlidingEnd(c);
+    if (sliding == nullptr) continue;
+    CheckIndex(state->threads, sliding->index, "thread");
+    const double s = ThreadEndParameter(*sliding);
+    const double to = SlidTo(*state, c, *sliding, s);
+    if (to == s) continue;
+    ConstraintEnd& end = sliding == &c.a ? c.a : c.b;
+    end = ThreadPointEnd(end.index, to);
+    ++moved;
+  }
+  return moved;
 }
 
 int RemoveConstraintsOnDeadThreadNodes(State* state) {

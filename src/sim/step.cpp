@@ -66,6 +66,10 @@ void SolveThreads(const Model& model, State* state, Workspace* ws) {
   ws->timings.thread_ms = MsSince(t0);
 }
 
+// Sliding constraint ends: threads run through stitches, knots and the hook's bend where the
+// pull along them exceeds the friction (Coulomb); the new points hold from the next step.
+void SlideConstraints(State* state) { physics::SlideConstraintEnds(state); }
+
 // Forces on the instruments (haptic feedback, /tools/<name>/force): the handle-proxy coupling,
 // the reactions of the solved contacts and those of springs held by a tool (a grasp pulls back
 // on the grasper), clamped to the device maximum.
@@ -135,6 +139,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   BuildConstraintSprings(*state, ws);
   SolveSoftTissue(model, state, ws);
   SolveThreads(model, state, ws);
+  SlideConstraints(state);
   AccumulateToolForces(model, prev_tools, *ws, state);
   AdvanceTime(model, state);
   RecordContactEvents(model, ws, state);

@@ -83,6 +83,20 @@ struct ScorpionNeedleOptions {
   double tissue_stiffness_n_per_mm = 5.0;  ///< tool-tissue grasp spring, N/mm
   double thread_stiffness_n_per_mm = 5.0;  ///< tool-thread spring, N/mm
   double stitch_stiffness_n_per_mm = 5.0;  ///< thread-tissue stitch springs, N/mm
+  /// Friction each stitch spring opposes to the thread sliding through the bite, N (the stitch
+  /// ends slide along the thread); < 0: the stitches hold fixed thread nodes (the paper).
+  double stitch_friction_n = 0.5;
+};
+
+/// Hook (contact only; scenario `operations.hook`): a thread in the bend of the barb is snagged
+/// by a frictionless sliding spring at the bend, so the hook pulls it along while the thread runs
+/// through the bend; released when the hook is turned away or the thread slips out.
+struct HookOptions {
+  double catch_reach_mm = 1.5;      ///< a thread this close (mm) to the bend point is snagged
+  double dist_limit_mm = 3.0;       ///< the thread slips out beyond this stretch, mm
+  double release_angle_deg = 100;   ///< turned away: bend opening vs pull beyond this, deg
+  double stiffness_n_per_mm = 5.0;  ///< bend-thread spring, N/mm
+  double friction_n = 0.0;          ///< friction of the thread running through the bend, N
 };
 
 /// Thresholds of the instrument operations (scenario section `operations:`; defaults documented
@@ -98,6 +112,7 @@ struct OperationOptions {
   GraspOptions grasper;
   GraspOptions retriever;
   ScorpionNeedleOptions scorpion_needle;
+  HookOptions hook;
 };
 
 }  // namespace arthrosim

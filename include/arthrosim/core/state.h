@@ -71,6 +71,10 @@ struct SpringConstraint {
   ConstraintEnd a, b;
   double stiffness_n_per_mm = 1.0;  ///< N/mm
   double rest_length_mm = 0.0;
+  /// Sliding end (physics::SlideConstraintEnds): >= 0, the thread end (a if both are threads)
+  /// is a point along its thread (nodes i, i+1 with weights 1-f, f) that moves along the chain
+  /// when the spring's pull along the thread exceeds this friction force, N; < 0, fixed ends.
+  double slide_friction_n = -1.0;
 };
 
 /// Per instrument-slot state (a working hand / portal).

@@ -126,6 +126,7 @@ void VisitFields(S& c, V&& v) {
   v(c.b, FieldInfo{"b", "", FieldStore::kNested});
   v(c.stiffness_n_per_mm, FieldInfo{"stiffness", "N/mm", FieldStore::kFrame});
   v(c.rest_length_mm, FieldInfo{"rest_length", "mm", FieldStore::kFrame});
+  v(c.slide_friction_n, FieldInfo{"slide_friction", "N", FieldStore::kFrame});
 }
 
 /// Every member of a tool slot (/tool_slots: one row of kToolSlots values per frame).

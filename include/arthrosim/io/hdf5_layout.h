@@ -137,6 +137,7 @@ struct ConstraintRecord {
   char tag[kTagChars];
   double stiffness_n_per_mm;
   double rest_length_mm;
+  double slide_friction_n;
   ConstraintEndRecord a;
   ConstraintEndRecord b;
 };

@@ -41,6 +41,28 @@ SpringSet BuildPointSprings(const State& state);
 /// The same into *springs (cleared first; its capacity is reused, so a step need not allocate).
 void BuildPointSprings(const State& state, SpringSet* springs);
 
+/// A thread end at arc parameter s along thread `thread`: s = i + f lies between nodes i and
+/// i + 1 at fraction f in [0, 1) (weights 1 - f and f); an integer s is node s alone. Throws
+/// std::invalid_argument for a negative thread index or s < 0.
+ConstraintEnd ThreadPointEnd(std::int32_t thread, double s);
+
+/// The arc parameter s of a thread end made by ThreadPointEnd (or one holding a single node):
+/// nodes[0] + weights[1]. Throws std::invalid_argument if the end is not of that form.
+double ThreadEndParameter(const ConstraintEnd& end);
+
+/// The sliding end of c (its thread end, a if both are threads), or nullptr if c does not slide
+/// (slide_friction_n < 0 or no thread end).
+const ConstraintEnd* SlidingEnd(const SpringConstraint& c);
+
+/// Coulomb friction of sliding ends (one step, after the solvers): for every constraint with
+/// slide_friction_n >= 0, the spring's pull on its thread end, projected on the thread tangent,
+/// that exceeds the friction moves the end along the chain (the thread runs through the stitch,
+/// knot or hook) by (|f_t| - friction) / stiffness mm, walking segment by segment, so the pull
+/// left along the thread equals the friction; the end stops at a dead node or the chain's last
+/// node (the thread end does not pass through). Sliding only lowers the spring energy. Returns
+/// how many ends moved.
+int SlideConstraintEnds(State* state);
+
 /// Removes constraints with an end on a dead thread node (after a cut); returns how many.
 int RemoveConstraintsOnDeadThreadNodes(State* state);
 
