@@ -24,7 +24,7 @@ constexpr std::array<Operation, kInstrumentKindCount> kOperations = {
     &GrasperOperation,         // kGrasper
     &ScorpionNeedleOperation,  // kScorpionNeedle
     nullptr,                   // kKnotPusher
-    nullptr,                   // kHook
+    &HookOperation,            // kHook
 };
 
 }  // namespace

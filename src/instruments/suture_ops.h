@@ -32,6 +32,14 @@ void RetrieverOperation(const Model& model, int slot, const StepContext& context
 void ScorpionNeedleOperation(const Model& model, int slot, const StepContext& context, State* state,
                              InstrumentScratch* scratch);
 
+/// Hook (contact only): a live thread within operations.hook.catch_reach of the bend's seat
+/// while the hook is drawn toward its mouth is snagged by a sliding spring (tag "hook", event
+/// `hook_catch`) that pulls it along as it runs through the bend; released (event
+/// `hook_release`) when the pull points more than release_angle away from into the bend (the
+/// hook turned away) or stretches beyond dist_limit.
+void HookOperation(const Model& model, int slot, const StepContext& context, State* state,
+                   InstrumentScratch* scratch);
+
 /// A point on a soft body's boundary surface: triangle (global node ids) and barycentric
 /// weights, in the current state.
 struct SurfacePoint {

@@ -88,6 +88,7 @@ instruments:
   - {name: grasper, kind: grasper, portal: lateral}
   - {name: retriever, kind: retriever, portal: lateral}
   - {name: scorpion_needle, kind: scorpion_needle, portal: lateral, tip_length: 8}
+  - {name: hook, kind: hook, portal: lateral}
 camera: {portal: lateral, position: [50, 10, 20], look_at: [10, 10, 5]}
 )" + extra;
   const std::string path = (dir / "slab.yaml").string();
