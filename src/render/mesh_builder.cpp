@@ -21,6 +21,7 @@ std::uint32_t MeshBuilder::AddWorld(const Vec3& pos, const Vec3& normal, float u
   for (int i = 0; i < 3; ++i) {
     vx.pos[i] = static_cast<float>(pos[i]);
     vx.normal[i] = static_cast<float>(normal[i]);
+    vx.tex[i] = vx.pos[i];
   }
   vx.uv[0] = u;
   vx.uv[1] = v;

@@ -27,6 +27,21 @@ constexpr float kOverviewAmbient = 0.18f;
 constexpr double kMaxHalfFovRad = 80.0 * 3.14159265358979323846 / 180.0;
 // Sides of the polygons that bound the image circle (lens pass) and the texels it samples.
 constexpr int kFanSides = 64;
+// Auto-exposure metering: the lens pass drawn at kMeterSize^2 pixels in linear radiance. The
+// gain puts the mean luminance of the image circle at kKeyRadiance (tone-mapped 0.45, a mid
+// grey) unless that would push the 98.5th percentile of the brightest channel beyond
+// kPeakRadiance (tone-mapped 248 of 255; wet glints above it may clip), within
+// [kMinExposure, kMaxExposure].
+constexpr int kMeterSize = 64;
+constexpr double kKeyRadiance = 0.43;
+constexpr double kPeakRadiance = 2.6;
+constexpr double kPeakQuantile = 0.985;
+constexpr double kMinExposure = 0.03;
+constexpr double kMaxExposure = 2.5;
+// Fibre streaks fade out where one period of the finer ones spans fewer than 4 pixels.
+constexpr double kFibreMinPixels = 4.0;
+constexpr double kFibreFinePeriod = 0.43;  // finer streaks' period / fibre_period_mm
+constexpr double kCrimpPeriodMm = 3.0;
 
 Mat4 LookAt(const Vec3& eye, const Vec3& forward, const Vec3& up) {
   const Vec3 f = forward.normalized();
@@ -88,6 +103,31 @@ struct Viewport {
   int x = 0, y = 0, w = 0, h = 0;
 };
 
+// Exposure gain for the linear RGBA radiance of the metering pass (size x size, the image
+// circle inscribed); see kKeyRadiance.
+double MeteredExposure(const std::vector<float>& rgba, int size) {
+  std::vector<float> peak;
+  peak.reserve(static_cast<std::size_t>(size) * size);
+  double sum = 0;
+  const double c = 0.5 * size, r2 = (0.5 * size - 1) * (0.5 * size - 1);
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const double dx = x + 0.5 - c, dy = y + 0.5 - c;
+      if (dx * dx + dy * dy > r2) continue;
+      const float* p = &rgba[4 * (static_cast<std::size_t>(y) * size + x)];
+      sum += 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+      peak.push_back(std::max({p[0], p[1], p[2]}));
+    }
+  }
+  if (peak.empty()) return 1.0;
+  const double mean = sum / static_cast<double>(peak.size());
+  const auto k = static_cast<std::ptrdiff_t>(kPeakQuantile * static_cast<double>(peak.size() - 1));
+  std::nth_element(peak.begin(), peak.begin() + k, peak.end());
+  const double gain = std::min(kKeyRadiance / std::max(mean, 1e-6),
+                               kPeakRadiance / std::max<double>(peak[k], 1e-6));
+  return std::clamp(gain, kMinExposure, kMaxExposure);
+}
+
 }  // namespace
 
 View ParseView(const std::string& name) {
@@ -114,17 +154,24 @@ struct Renderer::Impl {
   std::vector<unsigned char> buffer;  // OSMesa colour buffer, RGBA, bottom-up
   int buf_w = 0, buf_h = 0;
   GlApi gl;
-  // one mesh program per SceneMaterial::pattern (0 plain, 1 braid, 2 bone)
-  static constexpr int kPatterns = 3;
+  // one mesh program per SceneMaterial::pattern (0 plain, 1 braid, 2 bone, 3 fibrous, 4 vascular)
+  static constexpr int kPatterns = 5;
   GLuint mesh_prog[kPatterns] = {}, post_prog = 0;
   GLuint vao = 0, vbo = 0, ebo = 0, post_vao = 0;
   GLuint fbo = 0, fbo_tex = 0, fbo_depth = 0;
   int fbo_size = 0;
+  GLuint meter_fbo = 0, meter_tex = 0;  // kMeterSize^2 RGBA32F, the metering pass
+  std::vector<float> meter;             // its pixels
+  GLuint id_prog = 0;
+  GLint id_uniform = -1, id_view_proj = -1;
+  bool ids_mode = false;     // drawing tissue ids instead of colours
+  double last_exposure = 1;  // gain of the last scope image
   struct MeshUniforms {
-    GLint view_proj, base, spec, shininess, metal, eye, light, ref2, spot_dir, spot, ambient;
+    GLint view_proj, base, spec, shininess, metal, wet, eye, light, ref2, spot_dir, spot, ambient,
+        exposure, along, across, band, fade;
   } mu[kPatterns]{};
   struct {
-    GLint tex, center, radius, theta_max, tan_max, k;
+    GLint tex, center, radius, theta_max, tan_max, k, exposure, ids;
   } pu{};
   GLuint mask_prog = 0;
   struct FanUniforms {
@@ -216,7 +263,8 @@ struct Renderer::Impl {
       gl.GenRenderbuffers(1, &fbo_depth);
     }
     glBindTexture(GL_TEXTURE_2D, fbo_tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, size, size, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    // linear radiance beyond 1 (the lens pass exposes it); ids are exact in half floats
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, size, size, 0, GL_RGBA, GL_FLOAT, nullptr);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -233,31 +281,78 @@ struct Renderer::Impl {
     fbo_size = size;
   }
 
-  // Draws the meshes (scope view: those visible in the scope) with one camera and light.
-  // `near_reach` (mm) bounds the distance from the eye to any point of the near clip rectangle.
-  void DrawMeshes(const Scene& scene, const Mat4& view_proj, const Vec3& eye, bool scope_light,
-                  const Vec3& spot_dir, double ref_mm, double near_reach) {
-    const Eigen::Matrix4f vp = view_proj.cast<float>();
-    for (int p = 0; p < kPatterns; ++p) {
-      const MeshUniforms& u = mu[p];
-      gl.UseProgram(mesh_prog[p]);
-      gl.UniformMatrix4fv(u.view_proj, 1, GL_FALSE, vp.data());
-      gl.Uniform3f(u.eye, float(eye.x()), float(eye.y()), float(eye.z()));
-      gl.Uniform3f(u.light, float(eye.x()), float(eye.y()), float(eye.z()));
-      gl.Uniform1f(u.ref2, scope_light ? float(ref_mm * ref_mm) : 0.0f);
-      gl.Uniform3f(u.spot_dir, float(spot_dir.x()), float(spot_dir.y()), float(spot_dir.z()));
-      gl.Uniform1i(u.spot, scope_light ? 1 : 0);
-      gl.Uniform1f(u.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
+  void EnsureMeterFbo() {
+    if (meter_fbo != 0) return;
+    gl.GenFramebuffers(1, &meter_fbo);
+    glGenTextures(1, &meter_tex);
+    glBindTexture(GL_TEXTURE_2D, meter_tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, kMeterSize, kMeterSize, 0, GL_RGBA, GL_FLOAT,
+                 nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, meter_fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, meter_tex, 0);
+    if (gl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+      throw RenderError("exposure metering framebuffer incomplete");
     }
-    int current = kPatterns - 1;  // bound last in the loop above
-    bool culling = false;         // Render() starts with culling off
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    meter.assign(static_cast<std::size_t>(4) * kMeterSize * kMeterSize, 0.0f);
+  }
+
+  // Per-material uniforms of the mesh programs: colours, lobes and the fibre pattern, whose
+  // bundles fade out when a period spans fewer than kFibreMinPixels at `px_rad` radians/pixel.
+  void SetMaterial(const MeshUniforms& u, const SceneMaterial& mat, double px_rad) const {
+    gl.Uniform3f(u.base, mat.base_color[0], mat.base_color[1], mat.base_color[2]);
+    gl.Uniform1f(u.spec, mat.specular);
+    gl.Uniform1f(u.shininess, mat.shininess);
+    gl.Uniform1f(u.metal, mat.metallic);
+    gl.Uniform1f(u.wet, mat.wet);
+    if (mat.pattern != 3) return;
+    const Vec3 f = Vec3(mat.fibre_dir[0], mat.fibre_dir[1], mat.fibre_dir[2]).normalized();
+    const double period = std::max<double>(mat.fibre_period_mm, 1e-3);
+    const double w = 2 * 3.14159265358979323846;
+    const Vec3 along = f * (w / kCrimpPeriodMm);
+    gl.Uniform3f(u.along, float(along.x()), float(along.y()), float(along.z()));
+    gl.Uniform1f(u.across, float(w / period));
+    gl.Uniform1f(u.band, mat.band);
+    // fade = clamp(2 - distance * u_fade): 1 up to kFibreMinPixels per fine period, 0 at half
+    gl.Uniform1f(u.fade, float(kFibreMinPixels * px_rad / (kFibreFinePeriod * period)));
+  }
+
+  // Draws the meshes (scope view: those visible in the scope) with one camera and light.
+  // `near_reach` (mm) bounds the distance from the eye to any point of the near clip rectangle;
+  // `px_rad` is the angle of one pixel at the image centre; `exposure` > 0 tone-maps in the
+  // shader, 0 writes linear radiance. In ids mode every mesh is drawn flat in its id colour.
+  void DrawMeshes(const Scene& scene, const Mat4& view_proj, const Vec3& eye, bool scope_light,
+                  const Vec3& spot_dir, double ref_mm, double near_reach, double px_rad,
+                  double exposure) {
+    const Eigen::Matrix4f vp = view_proj.cast<float>();
+    if (ids_mode) {
+      gl.UseProgram(id_prog);
+      gl.UniformMatrix4fv(id_view_proj, 1, GL_FALSE, vp.data());
+    } else {
+      for (int p = 0; p < kPatterns; ++p) {
+        const MeshUniforms& u = mu[p];
+        gl.UseProgram(mesh_prog[p]);
+        gl.UniformMatrix4fv(u.view_proj, 1, GL_FALSE, vp.data());
+        gl.Uniform3f(u.eye, float(eye.x()), float(eye.y()), float(eye.z()));
+        gl.Uniform3f(u.light, float(eye.x()), float(eye.y()), float(eye.z()));
+        gl.Uniform1f(u.ref2, scope_light ? float(ref_mm * ref_mm) : 0.0f);
+        gl.Uniform3f(u.spot_dir, float(spot_dir.x()), float(spot_dir.y()), float(spot_dir.z()));
+        gl.Uniform1i(u.spot, scope_light ? 1 : 0);
+        gl.Uniform1f(u.ambient, scope_light ? kScopeAmbient : kOverviewAmbient);
+        gl.Uniform1f(u.exposure, float(exposure));
+      }
+    }
+    int current = ids_mode ? -1 : kPatterns - 1;  // bound last above
+    bool culling = false;                         // Render() starts with culling off
     gl.BindVertexArray(vao);
     for (const std::size_t i : order) {
       const SceneMesh& m = scene.meshes[i];
       if (ranges[i].count == 0 || (scope_light && !m.visible_in_scope)) continue;
       const SceneMaterial& mat = m.material;
-      const int p = mat.pattern == 1 || mat.pattern == 2 ? mat.pattern : 0;
-      if (p != current) {
+      const int p = mat.pattern >= 1 && mat.pattern < kPatterns ? mat.pattern : 0;
+      if (!ids_mode && p != current) {
         gl.UseProgram(mesh_prog[p]);
         current = p;
       }
@@ -274,11 +369,12 @@ struct Renderer::Impl {
         }
         culling = cull;
       }
-      const MeshUniforms& u = mu[p];
-      gl.Uniform3f(u.base, mat.base_color[0], mat.base_color[1], mat.base_color[2]);
-      gl.Uniform1f(u.spec, mat.specular);
-      gl.Uniform1f(u.shininess, mat.shininess);
-      gl.Uniform1f(u.metal, mat.metallic);
+      if (ids_mode) {
+        const auto id = static_cast<unsigned>(i + 1);
+        gl.Uniform3f(id_uniform, float(id & 255u) / 255.0f, float((id >> 8) & 255u) / 255.0f, 0.0f);
+      } else {
+        SetMaterial(mu[p], mat, px_rad);
+      }
       gl.DrawElementsBaseVertex(
           GL_TRIANGLES, ranges[i].count, GL_UNSIGNED_INT,
           reinterpret_cast<const void*>(ranges[i].first * sizeof(std::uint32_t)),
@@ -305,7 +401,11 @@ struct Renderer::Impl {
     gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, tex, tex);
     glDisable(GL_SCISSOR_TEST);
-    glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
+    if (ids_mode) {
+      glClearColor(0, 0, 0, 1);
+    } else {
+      glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
+    }
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     // The lens pass samples only the inscribed disc of the texture (bilinear: one texel
@@ -322,28 +422,51 @@ struct Renderer::Impl {
     glDepthFunc(GL_LESS);
     const double near = scene.scope.near_mm;
     DrawMeshes(scene, view_proj, f.eye, true, f.forward, spec.light_ref_mm,
-               near * std::sqrt(1.0 + 2.0 * tan_max * tan_max));
+               near * std::sqrt(1.0 + 2.0 * tan_max * tan_max), 2.0 * tan_max / tex, 0.0);
 
     // pass 2: lens distortion and field stop into the output viewport
-    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
-    glViewport(vp.x, vp.y, vp.w, vp.h);
     glDisable(GL_DEPTH_TEST);
+    if (!ids_mode && spec.auto_exposure) EnsureMeterFbo();  // binds its own texture
     gl.UseProgram(post_prog);
     gl.ActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, fbo_tex);
     gl.Uniform1i(pu.tex, 0);
-    gl.Uniform2f(pu.center, float(vp.x + 0.5 * vp.w), float(vp.y + 0.5 * vp.h));
-    gl.Uniform1f(pu.radius, float(0.5 * diameter));
     gl.Uniform1f(pu.theta_max, float(half));
     gl.Uniform1f(pu.tan_max, float(tan_max));
     gl.Uniform1f(pu.k, float(spec.distortion));
+    gl.Uniform1i(pu.ids, ids_mode ? 1 : 0);
     gl.BindVertexArray(post_vao);
+    double exposure = spec.exposure;
+    if (!ids_mode && spec.auto_exposure) exposure = Meter();
+    last_exposure = exposure;
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(vp.x, vp.y, vp.w, vp.h);
+    gl.Uniform2f(pu.center, float(vp.x + 0.5 * vp.w), float(vp.y + 0.5 * vp.h));
+    gl.Uniform1f(pu.radius, float(0.5 * diameter));
+    gl.Uniform1f(pu.exposure, float(exposure));
     // only a polygon around the image circle (1.5 px beyond its anti-aliased rim): the rest is
     // already black
     const double px = 0.5 * diameter + 1.5;
     SetFan(post_fan, 0, 0, 2.0 / vp.w, 2.0 / vp.h,
            px / std::cos(3.14159265358979323846 / kFanSides), 0, 0);
     glDrawArrays(GL_TRIANGLE_FAN, 0, kFanSides + 2);
+  }
+
+  // The lens pass (program and texture bound, EnsureMeterFbo done) drawn small in linear radiance
+  // and read back: the auto-exposure gain of this frame, a function of its content only.
+  double Meter() {
+    gl.BindFramebuffer(GL_FRAMEBUFFER, meter_fbo);
+    glViewport(0, 0, kMeterSize, kMeterSize);
+    gl.Uniform2f(pu.center, 0.5f * kMeterSize, 0.5f * kMeterSize);
+    gl.Uniform1f(pu.radius, 0.5f * kMeterSize);
+    gl.Uniform1f(pu.exposure, 0.0f);
+    SetFan(post_fan, 0, 0, 2.0 / kMeterSize, 2.0 / kMeterSize,
+           (0.5 * kMeterSize + 1.5) / std::cos(3.14159265358979323846 / kFanSides), 0, 0);
+    glDrawArrays(GL_TRIANGLE_FAN, 0, kFanSides + 2);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, kMeterSize, kMeterSize, GL_RGBA, GL_FLOAT, meter.data());
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    return MeteredExposure(meter, kMeterSize);
   }
 
   void RenderOverview(const Scene& scene, const ViewSpec& spec, const Viewport& vp) {
@@ -368,12 +491,17 @@ struct Renderer::Impl {
     glViewport(vp.x, vp.y, vp.w, vp.h);
     glScissor(vp.x, vp.y, vp.w, vp.h);
     glEnable(GL_SCISSOR_TEST);
-    glClearColor(kOverviewBackground[0], kOverviewBackground[1], kOverviewBackground[2], 1.0f);
+    if (ids_mode) {
+      glClearColor(0, 0, 0, 1);
+    } else {
+      glClearColor(kOverviewBackground[0], kOverviewBackground[1], kOverviewBackground[2], 1.0f);
+    }
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glDisable(GL_SCISSOR_TEST);
     glEnable(GL_DEPTH_TEST);
     DrawMeshes(scene, view_proj, eye, false, -dir, 0.0,
-               near * std::sqrt(1.0 + tan_y * tan_y * (1.0 + aspect * aspect)));
+               near * std::sqrt(1.0 + tan_y * tan_y * (1.0 + aspect * aspect)), 2.0 * tan_y / vp.h,
+               1.0);
   }
 };
 
@@ -412,11 +540,16 @@ Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>(
     const std::string fragment = "#version 330 core\n#define PATTERN " + std::to_string(p) + "\n" +
                                  shaders::kMeshFragmentBody;
     const GLuint prog = s.mesh_prog[p] = Link(gl, shaders::kMeshVertex, fragment.c_str());
-    s.mu[p] = {u(prog, "u_view_proj"), u(prog, "u_base"),   u(prog, "u_spec"),
-               u(prog, "u_shininess"), u(prog, "u_metal"),  u(prog, "u_eye"),
-               u(prog, "u_light"),     u(prog, "u_ref2"),   u(prog, "u_spot_dir"),
-               u(prog, "u_spot"),      u(prog, "u_ambient")};
+    s.mu[p] = {u(prog, "u_view_proj"), u(prog, "u_base"),  u(prog, "u_spec"),
+               u(prog, "u_shininess"), u(prog, "u_metal"), u(prog, "u_wet"),
+               u(prog, "u_eye"),       u(prog, "u_light"), u(prog, "u_ref2"),
+               u(prog, "u_spot_dir"),  u(prog, "u_spot"),  u(prog, "u_ambient"),
+               u(prog, "u_exposure"),  u(prog, "u_along"), u(prog, "u_across"),
+               u(prog, "u_band"),      u(prog, "u_fade")};
   }
+  s.id_prog = Link(gl, shaders::kMeshVertex, shaders::kIdFragment);
+  s.id_uniform = u(s.id_prog, "u_id");
+  s.id_view_proj = u(s.id_prog, "u_view_proj");
   s.post_prog = Link(gl, shaders::kPostVertex, shaders::kPostFragment);
   s.mask_prog = Link(gl, shaders::kPostVertex, shaders::kMaskFragment);
   auto fan = [&](GLuint p) {
@@ -426,7 +559,8 @@ Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>(
   s.post_fan = fan(s.post_prog);
   s.mask_fan = fan(s.mask_prog);
   s.pu = {u(s.post_prog, "u_tex"),       u(s.post_prog, "u_center"),  u(s.post_prog, "u_radius"),
-          u(s.post_prog, "u_theta_max"), u(s.post_prog, "u_tan_max"), u(s.post_prog, "u_k")};
+          u(s.post_prog, "u_theta_max"), u(s.post_prog, "u_tan_max"), u(s.post_prog, "u_k"),
+          u(s.post_prog, "u_exposure"),  u(s.post_prog, "u_ids")};
 
   // vertex layout of render::Vertex
   gl.GenVertexArrays(1, &s.vao);
@@ -445,7 +579,9 @@ Renderer::Renderer(const std::string& font_path) : impl_(std::make_unique<Impl>(
                          reinterpret_cast<const void*>(offsetof(Vertex, uv)));
   gl.VertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, stride,
                          reinterpret_cast<const void*>(offsetof(Vertex, rough)));
-  for (GLuint i = 0; i < 4; ++i) gl.EnableVertexAttribArray(i);
+  gl.VertexAttribPointer(4, 3, GL_FLOAT, GL_FALSE, stride,
+                         reinterpret_cast<const void*>(offsetof(Vertex, tex)));
+  for (GLuint i = 0; i < 5; ++i) gl.EnableVertexAttribArray(i);
   gl.BindVertexArray(0);
   if (glGetError() != GL_NO_ERROR) throw RenderError("OpenGL error while setting up the renderer");
 }
@@ -460,6 +596,7 @@ Renderer::~Renderer() {
       for (const GLuint prog : s.mesh_prog) gl.DeleteProgram(prog);
       gl.DeleteProgram(s.post_prog);
       gl.DeleteProgram(s.mask_prog);
+      gl.DeleteProgram(s.id_prog);
       gl.DeleteVertexArrays(1, &s.vao);
       gl.DeleteVertexArrays(1, &s.post_vao);
       gl.DeleteBuffers(1, &s.vbo);
@@ -468,6 +605,10 @@ Renderer::~Renderer() {
         gl.DeleteFramebuffers(1, &s.fbo);
         gl.DeleteRenderbuffers(1, &s.fbo_depth);
         glDeleteTextures(1, &s.fbo_tex);
+      }
+      if (s.meter_fbo != 0) {
+        gl.DeleteFramebuffers(1, &s.meter_fbo);
+        glDeleteTextures(1, &s.meter_tex);
       }
     }
   }
@@ -479,7 +620,9 @@ std::string Renderer::GlRenderer() const {
   return r != nullptr ? reinterpret_cast<const char*>(r) : "";
 }
 
-void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
+namespace {
+
+void CheckSpec(const ViewSpec& spec) {
   if (spec.width < 16 || spec.height < 16 || spec.width > 8192 || spec.height > 8192) {
     throw std::invalid_argument("render size " + std::to_string(spec.width) + "x" +
                                 std::to_string(spec.height) + ": expected 16..8192 pixels");
@@ -487,15 +630,22 @@ void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
   if (!(spec.field_stop > 0 && spec.field_stop <= 1) ||
       !(spec.distortion >= 0 && spec.distortion <= 1) || !(spec.light_ref_mm > 0) ||
       !(spec.scope_detail >= 0 && spec.scope_detail <= 1) ||
-      !(spec.overview_fov_deg > 1 && spec.overview_fov_deg < 170)) {
+      !(spec.overview_fov_deg > 1 && spec.overview_fov_deg < 170) ||
+      !(spec.exposure > 0 && spec.exposure < 1e3)) {
     throw std::invalid_argument(
         "ViewSpec: expected field_stop in (0,1], distortion in [0,1], scope_detail in [0,1], "
-        "light_ref_mm > 0, "
-        "overview_fov_deg in (1,170)");
+        "light_ref_mm > 0, overview_fov_deg in (1,170), exposure in (0,1000)");
   }
+}
+
+}  // namespace
+
+void Renderer::Draw(const Scene& scene, const ViewSpec& spec, bool ids) {
+  CheckSpec(spec);
   Impl& s = *impl_;
   const int w = spec.width, h = spec.height;
   s.MakeCurrent(w, h);
+  s.ids_mode = ids;
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glDisable(GL_CULL_FACE);
   glDepthFunc(GL_LESS);
@@ -518,13 +668,19 @@ void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
       s.RenderOverview(scene, spec, {w / 2, 0, w - w / 2, h});
       break;
   }
-
-  // OSMesa's colour buffer is our own `buffer` (bottom-up RGBA), complete after glFinish: no
-  // glReadPixels copy. Store top-down RGB.
+  s.ids_mode = false;
   glFinish();
   if (const GLenum err = glGetError(); err != GL_NO_ERROR) {
     throw RenderError("OpenGL error " + std::to_string(err) + " while rendering");
   }
+}
+
+void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
+  Draw(scene, spec, false);
+  // OSMesa's colour buffer is our own `buffer` (bottom-up RGBA), complete after glFinish: no
+  // glReadPixels copy. Store top-down RGB.
+  const Impl& s = *impl_;
+  const int w = spec.width, h = spec.height;
   out->Resize(w, h);
   for (int y = 0; y < h; ++y) {
     const unsigned char* src = s.buffer.data() + static_cast<std::size_t>(4) * w * (h - 1 - y);
@@ -536,6 +692,45 @@ void Renderer::Render(const Scene& scene, const ViewSpec& spec, Image* out) {
     }
   }
   if (spec.overlay && scene.overlay.enabled) DrawOverlay(scene.overlay, s.font.get(), out);
+}
+
+void Renderer::RenderIds(const Scene& scene, const ViewSpec& spec, std::vector<std::int32_t>* ids) {
+  Draw(scene, spec, true);
+  const Impl& s = *impl_;
+  const int w = spec.width, h = spec.height;
+  ids->assign(static_cast<std::size_t>(w) * h, -1);
+  for (int y = 0; y < h; ++y) {
+    const unsigned char* src = s.buffer.data() + static_cast<std::size_t>(4) * w * (h - 1 - y);
+    for (int x = 0; x < w; ++x) {
+      (*ids)[static_cast<std::size_t>(y) * w + x] = src[4 * x] + 256 * src[4 * x + 1] - 1;
+    }
+  }
+}
+
+double Renderer::LastExposure() const { return impl_->last_exposure; }
+
+bool InFieldStop(const ViewSpec& spec, int x, int y) {
+  const int vw = spec.view == View::kBoth ? spec.width / 2 : spec.width;
+  if (spec.view == View::kOverview || x < 0 || x >= vw || y < 0 || y >= spec.height) return false;
+  const double r = 0.5 * spec.field_stop * std::min(vw, spec.height) - 1.0;
+  const double dx = x + 0.5 - 0.5 * vw, dy = y + 0.5 - 0.5 * spec.height;
+  return dx * dx + dy * dy < r * r;
+}
+
+double ClippedShare(const Image& image, const ViewSpec& spec) {
+  if (image.width != spec.width || image.height != spec.height) {
+    throw std::invalid_argument("ClippedShare: image size differs from the ViewSpec");
+  }
+  std::size_t inside = 0, clipped = 0;
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      if (!InFieldStop(spec, x, y)) continue;
+      const std::uint8_t* p = image.At(x, y);
+      ++inside;
+      clipped += std::max({p[0], p[1], p[2]}) >= kClippedLevel;
+    }
+  }
+  return inside == 0 ? 0.0 : static_cast<double>(clipped) / static_cast<double>(inside);
 }
 
 }  // namespace arthrosim::render

@@ -1,5 +1,6 @@
 #include "arthrosim/render/scene.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -19,7 +20,7 @@ constexpr double kFullRoughDepthMm = 0.5;
 constexpr int kThreadSides = 8;
 
 SceneMaterial Make(float r, float g, float b, float specular, float shininess, float metallic,
-                   int pattern) {
+                   int pattern, float wet = 0.0f) {
   SceneMaterial m;
   m.base_color[0] = r;
   m.base_color[1] = g;
@@ -28,6 +29,13 @@ SceneMaterial Make(float r, float g, float b, float specular, float shininess, f
   m.shininess = shininess;
   m.metallic = metallic;
   m.pattern = pattern;
+  m.wet = wet;
+  return m;
+}
+
+SceneMaterial Fibrous(SceneMaterial m, float period_mm, float band) {
+  m.fibre_period_mm = period_mm;
+  m.band = band;
   return m;
 }
 
@@ -40,8 +48,34 @@ std::string Lower(std::string s) {
 
 Vertex MakeVertex(const Vec3& p) {
   Vertex v{};
-  for (int k = 0; k < 3; ++k) v.pos[k] = static_cast<float>(p[k]);
+  for (int k = 0; k < 3; ++k) v.pos[k] = v.tex[k] = static_cast<float>(p[k]);
   return v;
+}
+
+void SetTex(const Vec3& p, Vertex* v) {
+  for (int k = 0; k < 3; ++k) v->tex[k] = static_cast<float>(p[k]);
+}
+
+// Fibre axis of a body: the principal axis (largest spread) of its rest nodes; the rotator-cuff
+// muscles and tendons run along their length.
+void SetFibreAxis(const Points& rest, SceneMaterial* m) {
+  if (rest.cols() < 2) return;
+  const Vec3 mean = rest.rowwise().mean();
+  Mat3 cov = Mat3::Zero();
+  for (Eigen::Index i = 0; i < rest.cols(); ++i) {
+    const Vec3 d = rest.col(i) - mean;
+    cov += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov);
+  Vec3 axis = eig.eigenvectors().col(2);
+  // a fixed sign, so the pattern does not depend on the solver's choice
+  const Eigen::Index big = [&] {
+    Eigen::Index k = 0;
+    axis.cwiseAbs().maxCoeff(&k);
+    return k;
+  }();
+  if (axis[big] < 0) axis = -axis;
+  for (int k = 0; k < 3; ++k) m->fibre_dir[k] = static_cast<float>(axis[k]);
 }
 
 // Indexed triangles over a subset of `x`'s columns: only referenced nodes become vertices.
@@ -86,7 +120,8 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
     mesh.vertices.resize(topo->nodes.size());
     for (std::size_t v = 0; v < topo->nodes.size(); ++v) {
       mesh.vertices[v] = MakeVertex(s.x.col(topo->nodes[v]));
-      // electrocautery marks (docs/operations.md): whitened, coagulated tissue (shader pattern 0)
+      if (topo->nodes[v] < s.x_rest.cols()) SetTex(s.x_rest.col(topo->nodes[v]), &mesh.vertices[v]);
+      // electrocautery marks (docs/operations.md): charred, coagulated tissue (mesh shader)
       const auto node = static_cast<std::size_t>(topo->nodes[v]);
       if (node < s.cauterized.size() && s.cauterized[node] != 0) mesh.vertices[v].rough = 1.0f;
     }
@@ -94,6 +129,8 @@ void AppendSoftBodies(const Model& model, const State& state, Scene* scene) {
     mesh.name = model.soft_bodies[i].name;
     mesh.layer = MeshLayer::kSoftTissue;
     mesh.material = TissueMaterial(mesh.name, false);
+    if (mesh.material.pattern == 3)
+      SetFibreAxis(model.soft_bodies[i].rest_mesh.nodes, &mesh.material);
     ComputeVertexNormals(&mesh);
     // inverted tets on the boundary can fold the surface; the volume sign catches a body turned
     // inside out, not a local fold (see Renderer back-face culling)
@@ -128,6 +165,7 @@ SceneMesh BoneGeometry(const mesh::TriMesh& now, const mesh::TriMesh& initial,
       if (remap[n] < 0) continue;
       const double depth = (now.nodes.col(n) - initial.nodes.col(n)).norm();
       mesh.vertices[remap[n]].rough = static_cast<float>(std::min(1.0, depth / kFullRoughDepthMm));
+      SetTex(initial.nodes.col(n), &mesh.vertices[remap[n]]);
     }
   }
   return mesh;
@@ -227,15 +265,22 @@ void ComputeBounds(Scene* scene) {
 
 SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone) {
   const std::string n = Lower(body_name);
-  if (Contains(n, "cartilage")) return Make(0.82f, 0.86f, 0.90f, 0.7f, 60.0f, 0.0f, 0);
-  if (is_bone) return Make(0.86f, 0.79f, 0.60f, 0.12f, 12.0f, 0.0f, 2);
+  // hyaline cartilage: smooth, bluish-white, very wet
+  if (Contains(n, "cartilage")) return Make(0.80f, 0.85f, 0.93f, 0.6f, 70.0f, 0.0f, 0, 0.9f);
+  // ivory cortical bone, dull; cancellous and bleeding where burred (pattern 2)
+  if (is_bone) return Make(0.86f, 0.79f, 0.60f, 0.12f, 12.0f, 0.0f, 2, 0.3f);
   if (Contains(n, "muscle") || Contains(n, "belly")) {
-    return Make(0.55f, 0.17f, 0.13f, 0.45f, 45.0f, 0.0f, 0);
+    return Fibrous(Make(0.60f, 0.12f, 0.10f, 0.25f, 40.0f, 0.0f, 3, 0.45f), 2.5f, 0.22f);
   }
-  if (Contains(n, "biceps")) return Make(0.90f, 0.84f, 0.70f, 0.6f, 70.0f, 0.0f, 0);
-  if (Contains(n, "labrum")) return Make(0.88f, 0.82f, 0.74f, 0.55f, 60.0f, 0.0f, 0);
-  // tendon (default for soft tissue): glossy white-yellow
-  return Make(0.95f, 0.93f, 0.85f, 0.65f, 80.0f, 0.0f, 0);
+  if (Contains(n, "bursa") || Contains(n, "synov")) {
+    return Make(0.80f, 0.40f, 0.36f, 0.35f, 40.0f, 0.0f, 4, 0.7f);
+  }
+  if (Contains(n, "labrum")) return Make(0.88f, 0.82f, 0.74f, 0.5f, 60.0f, 0.0f, 0, 0.7f);
+  if (Contains(n, "biceps")) {
+    return Fibrous(Make(0.92f, 0.87f, 0.76f, 0.5f, 70.0f, 0.0f, 3, 0.8f), 1.5f, 0.10f);
+  }
+  // tendon and ligament (default for soft tissue): white, glossy, fibre bundles
+  return Fibrous(Make(0.93f, 0.91f, 0.84f, 0.5f, 80.0f, 0.0f, 3, 0.8f), 1.5f, 0.10f);
 }
 
 ViewFrame ScopeViewFrame(const SceneScope& scope) {

@@ -3,48 +3,63 @@
 
 namespace arthrosim::render::shaders {
 
-// Meshes: world-space positions; lighting in world space.
+// Meshes: world-space positions; lighting in world space. a_tex: texture-space position (mm),
+// the rest position of soft tissue so its pattern stays on the tissue as it deforms.
 inline constexpr const char* kMeshVertex = R"(#version 330 core
 layout(location = 0) in vec3 a_pos;
 layout(location = 1) in vec3 a_normal;
 layout(location = 2) in vec2 a_uv;
 layout(location = 3) in float a_rough;
+layout(location = 4) in vec3 a_tex;
 uniform mat4 u_view_proj;
 out vec3 v_pos;
 out vec3 v_normal;
 out vec2 v_uv;
 out float v_rough;
+out vec3 v_tex;
 void main() {
   v_pos = a_pos;
   v_normal = a_normal;
   v_uv = a_uv;
   v_rough = a_rough;
+  v_tex = a_tex;
   gl_Position = u_view_proj * vec4(a_pos, 1.0);
 }
 )";
 
-// Blinn-Phong under one point light. Scope: the light sits at the lens with inverse-square
-// fall-off (u_ref2 = reference distance squared) and a soft cone around the view axis;
-// overview: a headlight without fall-off (u_ref2 = 0). PATTERN (a #define put in front of this
-// body, one program per pattern): 0 plain (rough > 0: cauterised tissue), 1 braided suture, 2 bone
-// (uv.x = albedo grain factor; procedural pits only where burred). One program per pattern because
-// llvmpipe runs both sides of a branch under a lane mask: a runtime pattern switch shaded every
-// fragment with the noise.
+// Blinn-Phong under one point light plus a sharp wet-film lobe (u_wet). Scope: the light sits at
+// the lens with inverse-square fall-off (u_ref2 = reference distance squared) and a soft cone
+// around the view axis; overview: a headlight without fall-off (u_ref2 = 0). u_exposure > 0:
+// tone-mapped output with that gain (overview); 0: linear radiance for the lens pass, which
+// exposes the frame from its own content (scope auto-exposure). PATTERN (a #define put in front
+// of this body, one program per pattern): 0 plain, 1 braided suture, 2 bone (uv.x = albedo grain
+// factor; cancellous bed only where burred), 3 fibrous (tendon, muscle: bundles along the fibre
+// axis, u_along / u_across* in radians per mm), 4 vascular (bursa, synovium). Soft-tissue
+// patterns (0, 3, 4) show electrocautery marks (rough = 1 per marked vertex): a charred core in a
+// blanched rim. One program per pattern because llvmpipe runs both sides of a branch under a
+// lane mask: a runtime pattern switch shaded every fragment with the noise.
 inline constexpr const char* kMeshFragmentBody = R"(
 in vec3 v_pos;
 in vec3 v_normal;
 in vec2 v_uv;
 in float v_rough;
+in vec3 v_tex;
 uniform vec3 u_base;
 uniform float u_spec;
 uniform float u_shininess;
 uniform float u_metal;
+uniform float u_wet;
 uniform vec3 u_eye;
 uniform vec3 u_light;
 uniform float u_ref2;
 uniform vec3 u_spot_dir;
 uniform int u_spot;
 uniform float u_ambient;
+uniform float u_exposure;
+uniform vec3 u_along;
+uniform float u_across;
+uniform float u_band;
+uniform float u_fade;
 out vec4 o_color;
 
 #if PATTERN == 2
@@ -70,13 +85,8 @@ void main() {
   if (dot(n, view) < 0.0) n = -n;  // two-sided: cut faces, thin blades, open tubes
   vec3 albedo = u_base;
   float spec = u_spec;
-#if PATTERN == 0
-  // soft tissue marked by the electrocautery (rough = 1 per vertex): whitened, dull
-  if (v_rough > 0.0) {
-    albedo = mix(albedo, vec3(0.86, 0.80, 0.70), 0.85 * v_rough);
-    spec *= 1.0 - 0.7 * v_rough;
-  }
-#elif PATTERN == 1
+  float wet = u_wet;
+#if PATTERN == 1
   // braid: two helices of white tracer over the blue
   float a = fract(v_uv.x * 0.5 + v_uv.y * 2.0);
   float b = fract(v_uv.x * 0.5 - v_uv.y * 2.0);
@@ -84,19 +94,50 @@ void main() {
 #elif PATTERN == 2
   albedo *= v_uv.x;  // per-vertex grain (BuildScene), cheaper than per-fragment noise
   if (v_rough > 0.0) {
-    // burred: bleeding cancellous bone, pitted, dull
-    float pits = Noise(v_pos * 5.0);
-    vec3 cancellous = vec3(0.80, 0.46, 0.38) * (0.65 + 0.35 * pits);
+    // burred (decorticated): cancellous bone, pitted, bleeding from the opened marrow spaces
+    float pits = Noise(v_tex * 5.0);
+    vec3 cancellous = vec3(0.80, 0.50, 0.40) * (0.65 + 0.35 * pits);
+    cancellous = mix(cancellous, vec3(0.55, 0.08, 0.07), smoothstep(0.55, 0.8, pits));
     albedo = mix(albedo, cancellous, v_rough);
     spec *= 1.0 - 0.8 * v_rough;
-    vec3 jitter = vec3(Noise(v_pos * 4.0), Noise(v_pos * 4.0 + 17.0), Noise(v_pos * 4.0 + 31.0));
+    vec3 jitter = vec3(Noise(v_tex * 4.0), Noise(v_tex * 4.0 + 17.0), Noise(v_tex * 4.0 + 31.0));
     n = normalize(n + v_rough * 0.6 * (jitter - 0.5));
+  }
+#elif PATTERN == 3
+  // fibre bundles: streaks along the fibre axis (u_along, radians per mm of the crimp), spaced
+  // across it within this face (u_across = radians per mm), wavy with the crimp; faded where the
+  // spacing nears a pixel (u_fade)
+  vec3 across = cross(u_along, v_normal);
+  float la = length(across);
+  if (la > 1e-6) {
+    float s = dot(v_tex, u_along);
+    float x = dot(v_tex, across) * (u_across / la);
+    float crimp = 0.9 * sin(s) + 0.4 * sin(2.7 * s + 1.3);
+    float fib = 0.6 * sin(x + crimp) + 0.4 * sin(2.3 * x + 1.7 * sin(0.5 * s) + 0.6 * crimp);
+    float fade = clamp(2.0 - length(u_eye - v_pos) * u_fade, 0.0, 1.0);
+    albedo *= 1.0 + u_band * fade * fib;
+  }
+#elif PATTERN == 4
+  // vessels: two families of meandering lines (zero sets of warped sines), dark red
+  vec3 q = v_tex * 0.3;
+  float l1 = abs(sin(2.1 * q.x + 1.7 * sin(1.3 * q.y + 0.8 * sin(1.9 * q.z))));
+  float l2 = abs(sin(2.7 * q.y + 1.3 * sin(1.1 * q.z + 0.9 * sin(2.3 * q.x)) + 1.0));
+  float vessel = max(1.0 - smoothstep(0.0, 0.09, l1), 0.75 * (1.0 - smoothstep(0.0, 0.06, l2)));
+  albedo = mix(albedo, vec3(0.42, 0.04, 0.05), vessel);
+#endif
+#if PATTERN == 0 || PATTERN == 3 || PATTERN == 4
+  if (v_rough > 0.0) {
+    // electrocautery mark: blanched rim, charred core, dry
+    albedo = mix(albedo, vec3(0.84, 0.76, 0.64), 0.8 * smoothstep(0.0, 0.5, v_rough));
+    albedo = mix(albedo, vec3(0.13, 0.09, 0.07), 0.9 * smoothstep(0.5, 1.0, v_rough));
+    spec *= 1.0 - 0.8 * v_rough;
+    wet *= 1.0 - v_rough;
   }
 #endif
   vec3 to_light = u_light - v_pos;
   float d2 = max(dot(to_light, to_light), 1e-6);
   vec3 l = to_light * inversesqrt(d2);
-  float irradiance = u_ref2 > 0.0 ? min(u_ref2 / d2, 4.0) : 1.0;
+  float irradiance = u_ref2 > 0.0 ? min(u_ref2 / d2, 16.0) : 1.0;
   if (u_spot != 0) {
     float c = max(dot(-l, u_spot_dir), 0.0);
     irradiance *= 0.3 + 0.7 * c * c;
@@ -106,10 +147,11 @@ void main() {
   // Schlick's rational form of pow(t, shininess): same highlight, far cheaper on llvmpipe
   float t = max(dot(n, h), 0.0);
   float highlight = spec * t / (u_shininess - u_shininess * t + t);
+  // the saline film: a mirror-like glint of the light
+  highlight += wet * t / (600.0 - 600.0 * t + t);
   vec3 spec_color = mix(vec3(1.0), albedo, u_metal);
   vec3 color = albedo * (u_ambient + irradiance * diffuse) + irradiance * highlight * spec_color;
-  // soft shoulder instead of clipping (the scope's auto-exposure): linear-ish below 0.5
-  o_color = vec4(1.0 - exp(-1.4 * color), 1.0);
+  o_color = u_exposure > 0.0 ? vec4(1.0 - exp(-1.4 * u_exposure * color), 1.0) : vec4(color, 1.0);
 }
 )";
 
@@ -145,9 +187,11 @@ out vec4 o_color;
 void main() { o_color = vec4(0.0); }
 )";
 
-// Scope optics: the rectilinear render (half-angle u_theta_max at the texture edge) is remapped
-// to the image circle, blending rectilinear (k = 0) with an equidistant fisheye (k = 1: barrel
-// distortion); black outside the field stop with a one-pixel anti-aliased rim.
+// Scope optics: the rectilinear render (half-angle u_theta_max at the texture edge, linear
+// radiance) is remapped to the image circle, blending rectilinear (k = 0) with an equidistant
+// fisheye (k = 1: barrel distortion), exposed with u_exposure and tone-mapped; black outside the
+// field stop with a one-pixel anti-aliased rim. u_exposure = 0: the linear radiance (the
+// metering pass). u_ids = 1: tissue ids, nearest texel, no vignetting, hard rim.
 inline constexpr const char* kPostFragment = R"(#version 330 core
 uniform sampler2D u_tex;
 uniform vec2 u_center;
@@ -155,23 +199,39 @@ uniform float u_radius;
 uniform float u_theta_max;
 uniform float u_tan_max;
 uniform float u_k;
+uniform float u_exposure;
+uniform int u_ids;
 out vec4 o_color;
 void main() {
   vec2 d = gl_FragCoord.xy - u_center;
   float len = length(d);
   float inside = clamp(u_radius - len + 0.5, 0.0, 1.0);
-  if (inside <= 0.0) {
+  if (inside <= 0.0 || (u_ids != 0 && len > u_radius)) {
     o_color = vec4(0.0, 0.0, 0.0, 1.0);
     return;
   }
   float r = min(len / u_radius, 1.0);
   float rho = mix(r, tan(r * u_theta_max) / u_tan_max, u_k);
   vec2 dir = len > 0.0 ? d / len : vec2(0.0);
+  vec2 uv = vec2(0.5) + 0.5 * rho * dir;
+  if (u_ids != 0) {
+    ivec2 size = textureSize(u_tex, 0);
+    o_color = texelFetch(u_tex, clamp(ivec2(uv * vec2(size)), ivec2(0), size - 1), 0);
+    return;
+  }
   // one level, same filter for min and mag: an explicit LOD spares llvmpipe the derivatives
-  vec3 c = textureLod(u_tex, vec2(0.5) + 0.5 * rho * dir, 0.0).rgb;
+  vec3 c = textureLod(u_tex, uv, 0.0).rgb;
   c *= 1.0 - 0.25 * r * r * r * r;  // rim vignetting of the rod-lens optics
+  if (u_exposure > 0.0) c = 1.0 - exp(-1.4 * u_exposure * c);
   o_color = vec4(c * inside, 1.0);
 }
+)";
+
+// Tissue ids: the mesh index + 1 in 8-bit red and green (0 = no mesh).
+inline constexpr const char* kIdFragment = R"(#version 330 core
+uniform vec3 u_id;
+out vec4 o_color;
+void main() { o_color = vec4(u_id, 1.0); }
 )";
 
 }  // namespace arthrosim::render::shaders

@@ -81,6 +81,10 @@ TEST(RendererTest, BlackOutsideFieldStopLitInside) {
     }
     return sum / 36;
   };
+  EXPECT_GT(centre_luma(img), 100.0);
+  // under a fixed gain (auto exposure off)
+  spec.auto_exposure = false;
+  SharedRenderer().Render(BuildScene(model, state), spec, &img);
   const double near = centre_luma(img);
   EXPECT_GT(near, 100.0);
   State far = state;
@@ -116,6 +120,7 @@ Coverage BurrCoverage(const Vec3& dir_local, double lens_roll, double head_roll,
   ViewSpec spec = Spec(View::kScope, w, h);
   spec.overlay = false;
   spec.distortion = 0.0;  // rectilinear: the silhouette of a sphere has an analytic size
+  spec.auto_exposure = false;  // the same gain with and without the burr
   *radius_px = 0.5 * spec.field_stop * std::min(w, h);
   Image empty, with;
   SharedRenderer().Render(BuildScene(model, state), spec, &empty);

@@ -12,22 +12,31 @@
 
 namespace arthrosim::render {
 
-/// Surface appearance, shaded with Blinn-Phong under the scope light.
+/// Surface appearance, shaded with Blinn-Phong under the scope light plus a wet-film glint.
 struct SceneMaterial {
   float base_color[3] = {0.8f, 0.8f, 0.8f};  ///< linear RGB albedo in [0, 1]
   float specular = 0.2f;                     ///< specular strength in [0, 1] (wet tissue high)
   float shininess = 30.0f;                   ///< Blinn-Phong exponent (> 0)
   float metallic = 0.0f;                     ///< 1 tints the highlight with base_color
-  std::int32_t pattern = 0;                  ///< 0 plain, 1 suture braid stripes, 2 bone grain
+  float wet = 0.0f;  ///< strength of the sharp glint of the saline film, [0, 1]
+  /// 0 plain, 1 suture braid stripes, 2 bone grain (cancellous where burred), 3 fibrous
+  /// (tendon, muscle), 4 vascular (bursa, synovium)
+  std::int32_t pattern = 0;
+  float fibre_dir[3] = {1.0f, 0.0f, 0.0f};  ///< pattern 3: unit fibre axis in texture space
+  float fibre_period_mm = 0.6f;             ///< pattern 3: spacing of the fibre bundles, mm
+  float band = 0.0f;                        ///< pattern 3: relative albedo contrast of the bundles
 };
 
-/// One vertex: world position (mm), unit normal, texture coordinate, roughness in [0, 1]
-/// (bone: how deeply the surface was burred there; 0 elsewhere).
+/// One vertex: world position (mm), unit normal, texture coordinate, roughness in [0, 1] (bone:
+/// how deeply the surface was burred there; soft tissue: 1 where cauterised; 0 elsewhere), and
+/// the texture-space position (mm): the rest position of soft tissue and the initial position of
+/// bone, so patterns stay on the tissue as it moves; the world position elsewhere.
 struct Vertex {
   float pos[3];
   float normal[3];
   float uv[2];
   float rough;
+  float tex[3];
 };
 
 /// What a mesh is, for view filtering and tests.
@@ -96,8 +105,11 @@ struct Scene {
 /// @throws std::invalid_argument if State arrays do not match the Model (body counts).
 Scene BuildScene(const Model& model, const State& state);
 
-/// Material for a soft body or bone by its name ("tendon", "biceps", "muscle", "cartilage",
-/// "labrum" substrings); bones default to ivory, soft bodies without a hint to tendon.
+/// Material for a soft body or bone by its name ("cartilage", "muscle"/"belly", "bursa",
+/// "synov", "biceps", "labrum", "ligament" substrings): cartilage smooth bluish-white, bone
+/// ivory, muscle red with striation, bursa and synovium reddish with vessels, tendon, biceps and
+/// ligament white, glossy and fibrous; soft bodies without a hint are tendon. Fibrous materials
+/// get fibre_dir = +x (BuildScene sets each body's own axis).
 SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone);
 
 /// World camera frame of the scope: view direction = +z tilted lens_angle toward +y, rotated by
