@@ -23,7 +23,7 @@ constexpr std::array<Operation, kInstrumentKindCount> kOperations = {
     &RetrieverOperation,       // kRetriever
     &GrasperOperation,         // kGrasper
     &ScorpionNeedleOperation,  // kScorpionNeedle
-    nullptr,                   // kKnotPusher
+    &KnotPusherOperation,      // kKnotPusher
     &HookOperation,            // kHook
 };
 

@@ -40,6 +40,14 @@ void ScorpionNeedleOperation(const Model& model, int slot, const StepContext& co
 void HookOperation(const Model& model, int slot, const StepContext& context, State* state,
                    InstrumentScratch* scratch);
 
+/// Knot pusher (section III.6; knot_pusher.cpp): button 1 ties the nearest thread node within
+/// dist_limit to the tool (tag "knot_pusher", event `thread_catch`, two threads at most); when
+/// the second is held it throws a half hitch in the limbs and, if IdentifyKnot finds a real knot,
+/// binds them with "knot" springs (event `knot`). Button 2 slides the knot toward the target node
+/// as the loop slackens; there the tool lets go and the pull test runs (event `knot_seated`).
+void KnotPusherOperation(const Model& model, int slot, const StepContext& context, State* state,
+                         InstrumentScratch* scratch);
+
 /// A point on a soft body's boundary surface: triangle (global node ids) and barycentric
 /// weights, in the current state.
 struct SurfacePoint {

@@ -142,6 +142,22 @@ void ReadHook(const YamlSection& ops, HookOptions* o) {
   o->friction_n = s.NonNegative("friction", o->friction_n);
 }
 
+// Knot pusher (docs/operations.md "Knot tying").
+void ReadKnotPusher(const YamlSection& ops, KnotPusherOptions* o) {
+  if (!ops.Has("knot_pusher")) return;
+  const YamlSection s(ops.reader(), ops.Get("knot_pusher"), ops.Field("knot_pusher"),
+                      {"dist_limit", "thread_stiffness", "knot_stiffness", "knot_size",
+                       "target_node", "pull_force", "pull_time", "slip_limit"});
+  o->dist_limit_mm = s.Positive("dist_limit", o->dist_limit_mm);
+  o->thread_stiffness_n_per_mm = s.Positive("thread_stiffness", o->thread_stiffness_n_per_mm);
+  o->knot_stiffness_n_per_mm = s.Positive("knot_stiffness", o->knot_stiffness_n_per_mm);
+  o->knot_size_mm = s.Positive("knot_size", o->knot_size_mm);
+  o->target_node = static_cast<int>(s.Integer("target_node", o->target_node, 1));
+  o->pull_force_n = s.Positive("pull_force", o->pull_force_n);
+  o->pull_time_s = s.Positive("pull_time", o->pull_time_s);
+  o->slip_limit_mm = s.Positive("slip_limit", o->slip_limit_mm);
+}
+
 }  // namespace
 
 void ReadOperations(const YamlSection& root, Model* m) {
@@ -149,7 +165,7 @@ void ReadOperations(const YamlSection& root, Model* m) {
   OperationOptions& o = m->operations;
   const YamlSection ops(root.reader(), root.Get("operations"), "operations",
                         {"scissors", "cutter", "shaver", "electrocautery", "burr", "awl", "anchor",
-                         "grasper", "retriever", "scorpion_needle", "hook"});
+                         "grasper", "retriever", "scorpion_needle", "knot_pusher", "hook"});
   ReadScissors(ops, &o.scissors);
   ReadCutter(ops, &o.cutter);
   ReadSoftShaving(ops, "shaver", &o.shaver);
@@ -160,6 +176,7 @@ void ReadOperations(const YamlSection& root, Model* m) {
   ReadGrasp(ops, "grasper", &o.grasper);
   ReadGrasp(ops, "retriever", &o.retriever);
   ReadScorpionNeedle(ops, &o.scorpion_needle);
+  ReadKnotPusher(ops, &o.knot_pusher);
   ReadHook(ops, &o.hook);
 }
 

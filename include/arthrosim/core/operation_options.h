@@ -99,6 +99,19 @@ struct HookOptions {
   double friction_n = 0.0;          ///< friction of the thread running through the bend, N
 };
 
+/// Knot pusher, Choi et al. 2020 section III.6 (two buttons), plus the knot security pull test
+/// (docs/operations.md "Knot tying").
+struct KnotPusherOptions {
+  double dist_limit_mm = 2.0;              ///< Dist_limit: reach to the thread node it attaches
+  double thread_stiffness_n_per_mm = 5.0;  ///< tool-thread spring, N/mm
+  double knot_stiffness_n_per_mm = 20.0;   ///< each spring binding the two limbs in the knot, N/mm
+  double knot_size_mm = 1.2;               ///< scale of the laid half hitch (trefoil), mm
+  int target_node = 9;         ///< the knot seats this many nodes out from the tissue side
+  double pull_force_n = 5.0;   ///< security test: load on each limb, N
+  double pull_time_s = 0.5;    ///< security test: how long the load is held, s
+  double slip_limit_mm = 3.0;  ///< security test: slip beyond this is a failed knot, mm
+};
+
 /// Thresholds of the instrument operations (scenario section `operations:`; defaults documented
 /// in docs/operations.md, in mm and s). One sub-struct per operation.
 struct OperationOptions {
@@ -112,6 +125,7 @@ struct OperationOptions {
   GraspOptions grasper;
   GraspOptions retriever;
   ScorpionNeedleOptions scorpion_needle;
+  KnotPusherOptions knot_pusher;
   HookOptions hook;
 };
 
