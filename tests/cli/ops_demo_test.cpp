@@ -2,6 +2,7 @@
 // the arthrosim binary; each outcome is checked from the run file alone (plus the scenario, for
 // landmark positions and fixed regions): pieces, volumes, events and where they happened.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <functional>
 #include <numeric>
 #include <string>
+#include <vector>
 
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
@@ -20,13 +22,30 @@ namespace {
 const std::string kBinary = std::string(ARTHROSIM_BINARY_DIR) + "/src/cli/arthrosim";
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 
-// Runs trajectories/ops/<name>.yaml on the shoulder scene; returns the run file.
+// Run files written by this process, removed when the tests end.
+std::vector<std::string>& RunFiles() {
+  static std::vector<std::string> files;
+  return files;
+}
+
+class RemoveRunFiles : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    for (const std::string& f : RunFiles()) std::filesystem::remove(f);
+  }
+};
+const auto* const kRemoveRunFiles = ::testing::AddGlobalTestEnvironment(new RemoveRunFiles);
+
+// Runs trajectories/ops/<name>.yaml on the shoulder scene; returns the run file (named after this
+// process, so concurrent test runs do not share it).
 std::string RunDemo(const std::string& name) {
-  const std::string out =
-      (std::filesystem::temp_directory_path() / ("arthrosim_ops_" + name + ".h5")).string();
+  const std::string out = (std::filesystem::temp_directory_path() /
+                           ("arthrosim_ops_" + name + "_" + std::to_string(getpid()) + ".h5"))
+                              .string();
   const std::string cmd = kBinary + " run " + kSource + "/scenarios/rotator_cuff_repair.yaml" +
                           " --trajectory " + kSource + "/trajectories/ops/" + name + ".yaml" +
                           " --out " + out + " > /dev/null";
+  RunFiles().push_back(out);
   EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
   return out;
 }
