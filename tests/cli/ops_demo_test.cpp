@@ -31,7 +31,10 @@ std::vector<std::string>& RunFiles() {
 class RemoveRunFiles : public ::testing::Environment {
  public:
   void TearDown() override {
-    for (const std::string& f : RunFiles()) std::filesystem::remove(f);
+    for (const std::string& f : RunFiles()) {
+      std::filesystem::remove(f);
+      std::filesystem::remove(std::filesystem::path(f).replace_extension(".xmf"));  // sidecar
+    }
   }
 };
 const auto* const kRemoveRunFiles = ::testing::AddGlobalTestEnvironment(new RemoveRunFiles);
