@@ -274,7 +274,7 @@ TEST(OpsDemo, CutterCutsASutureLimbLeavingTheAnchoredPart) {
 
 // Debridement of the tendon edge: material goes at tear_edge_center only (the volume of the
 // tendon's tets within 10 mm of it falls by what was booked as removed, within 2 %; elsewhere it
-// stays within 1e-5), and the tendon is finite and at rest afterwards.
+// changes by less than 1 % of that), and the tendon is finite and at rest afterwards.
 TEST(OpsDemo, ShaverDebridesTheTendonEdge) {
   const io::RunReader run(RunDemo("shaver"));
   const std::int64_t last = run.frame_count() - 1;
@@ -300,7 +300,7 @@ TEST(OpsDemo, ShaverDebridesTheTendonEdge) {
   EXPECT_LT(event_far, 6.0);
   EXPECT_GT(b.removed_volume_mm3, 0.5);
   EXPECT_NEAR(before.near_mm3 - after.near_mm3, b.removed_volume_mm3, 0.02 * b.removed_volume_mm3);
-  EXPECT_NEAR(after.far_mm3, before.far_mm3, 1e-5 * before.far_mm3);
+  EXPECT_NEAR(after.far_mm3, before.far_mm3, 0.01 * b.removed_volume_mm3);
   for (const SoftBodyState& body : s.soft_bodies) EXPECT_TRUE(body.x.allFinite());
   EXPECT_LT(MaxSpeedMmS(run, last, tendon), 50.0);
 }
@@ -340,7 +340,7 @@ TEST(OpsDemo, ElectrocauteryMarksAndTrimsTheTendon) {
   std::printf("electrocautery: volume within 10 mm %.3f -> %.3f mm^3, elsewhere %.6f -> %.6f\n",
               before.near_mm3, after.near_mm3, before.far_mm3, after.far_mm3);
   EXPECT_NEAR(before.near_mm3 - after.near_mm3, b.removed_volume_mm3, 0.02 * b.removed_volume_mm3);
-  EXPECT_NEAR(after.far_mm3, before.far_mm3, 1e-5 * before.far_mm3);
+  EXPECT_NEAR(after.far_mm3, before.far_mm3, 0.01 * b.removed_volume_mm3);
   // No other body is marked.
   for (std::size_t i = 0; i < s.soft_bodies.size(); ++i) {
     if (static_cast<int>(i) == tendon) continue;
