@@ -2,6 +2,7 @@
 // on the shoulder scene; their outcomes are checked from the run file alone, as scoring reads it.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -22,8 +23,9 @@ const std::string kScene = kSource + "/scenarios/rotator_cuff_repair.yaml";
 
 // Runs the demo `name` with `threads` workers into a temporary file; returns its path.
 std::string RunDemo(const std::string& name, int threads) {
-  const fs::path out = fs::temp_directory_path() /
-                       ("arthrosim_demo_" + name + "_" + std::to_string(threads) + ".h5");
+  const fs::path out =
+      fs::temp_directory_path() / ("arthrosim_demo_" + name + "_" + std::to_string(threads) + "_" +
+                                   std::to_string(getpid()) + ".h5");  // concurrent test runs apart
   const std::string cmd = kBinary + " run " + kScene + " --trajectory " + kSource +
                           "/trajectories/ops/" + name + ".yaml --threads " +
                           std::to_string(threads) + " --quiet --out " + out.string() + " 2>&1";

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -67,13 +68,57 @@ bool OnBox(const Vec3& p) {
   return inside && on_face;
 }
 
-// Pairs of triangles without a shared vertex that intersect, among those near `center`.
-int SelfIntersections(const mesh::TriMesh& m, const Vec3& center, double radius) {
+// Six times the signed volume of (a, b, c, d).
+double Orient(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return (b - a).cross(c - a).dot(d - a);
+}
+
+// Whether segment (p, q) passes through triangle (a, b, c): its ends more than 1e-9 mm on either
+// side of the plane, and the line through them inside the three edges (signs of the volumes
+// alone, which stay meaningful for needle triangles where barycentric coordinates do not). An end
+// within 1e-9 mm of the plane is left to the distance tests (it would be in the plane up to
+// rounding, where these signs are noise).
+bool Crosses(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double area2 = (b - a).cross(c - a).norm();
+  if (!(area2 > 0)) return false;
+  const double h1 = Orient(a, b, c, p) / area2, h2 = Orient(a, b, c, q) / area2;
+  if (!((h1 > 1e-9 && h2 < -1e-9) || (h1 < -1e-9 && h2 > 1e-9))) return false;
+  const double s1 = Orient(p, q, a, b), s2 = Orient(p, q, b, c), s3 = Orient(p, q, c, a);
+  return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
+}
+
+// Whether triangles a and b intersect or touch (closer than 1e-9 mm): an edge of one through the
+// other, or a vertex-face or edge-edge distance below that (coplanar overlaps included).
+// collision::TriangleTriangle is not used: it reports 0 for needle triangles (two vertices
+// within 1e-5 mm) that are 2.8 um from the other triangle (checked by dense sampling).
+bool Touch(const mesh::TriMesh& m, const mesh::Tri& a, const mesh::Tri& b) {
+  const std::array<Vec3, 3> pa{m.nodes.col(a[0]), m.nodes.col(a[1]), m.nodes.col(a[2])};
+  const std::array<Vec3, 3> pb{m.nodes.col(b[0]), m.nodes.col(b[1]), m.nodes.col(b[2])};
+  constexpr double kTol2 = 1e-18;
+  for (int k = 0; k < 3; ++k) {
+    const int k1 = (k + 1) % 3;
+    if (Crosses(pa[k], pa[k1], pb[0], pb[1], pb[2])) return true;
+    if (Crosses(pb[k], pb[k1], pa[0], pa[1], pa[2])) return true;
+    if (collision::PointTriangle(pa[k], pb[0], pb[1], pb[2]).dist2 < kTol2) return true;
+    if (collision::PointTriangle(pb[k], pa[0], pa[1], pa[2]).dist2 < kTol2) return true;
+    for (int l = 0; l < 3; ++l) {
+      if (collision::SegmentSegment(pa[k], pa[k1], pb[l], pb[(l + 1) % 3]).dist2 < kTol2)
+        return true;
+    }
+  }
+  return false;
+}
+
+// Pairs of triangles without a shared vertex that intersect, among those near `center` with an
+// area of at least min_area_mm2 (0: all).
+int SelfIntersections(const mesh::TriMesh& m, const Vec3& center, double radius,
+                      double min_area_mm2 = 0) {
   std::vector<int> near;
   for (int t = 0; t < static_cast<int>(m.tris.size()); ++t) {
-    const Vec3 c =
-        (m.nodes.col(m.tris[t][0]) + m.nodes.col(m.tris[t][1]) + m.nodes.col(m.tris[t][2])) / 3.0;
-    if ((c - center).norm() < radius) near.push_back(t);
+    const Vec3 p0 = m.nodes.col(m.tris[t][0]), p1 = m.nodes.col(m.tris[t][1]),
+               p2 = m.nodes.col(m.tris[t][2]);
+    if (0.5 * (p1 - p0).cross(p2 - p0).norm() < min_area_mm2) continue;
+    if (((p0 + p1 + p2) / 3.0 - center).norm() < radius) near.push_back(t);
   }
   int hits = 0;
   for (std::size_t i = 0; i < near.size(); ++i) {
@@ -83,11 +128,17 @@ int SelfIntersections(const mesh::TriMesh& m, const Vec3& center, double radius)
       bool shared = false;
       for (int x : a) shared = shared || std::find(b.begin(), b.end(), x) != b.end();
       if (shared) continue;
-      const collision::Simplex sa =
-          collision::TriangleSimplex(m.nodes.col(a[0]), m.nodes.col(a[1]), m.nodes.col(a[2]));
-      const collision::Simplex sb =
-          collision::TriangleSimplex(m.nodes.col(b[0]), m.nodes.col(b[1]), m.nodes.col(b[2]));
-      if (collision::TriangleTriangle(sa, sb).dist2 == 0) ++hits;
+      // Triangles whose bounding boxes are more than the tolerance apart cannot touch.
+      Vec3 lo_a = m.nodes.col(a[0]), hi_a = lo_a, lo_b = m.nodes.col(b[0]), hi_b = lo_b;
+      for (int k = 1; k < 3; ++k) {
+        lo_a = lo_a.cwiseMin(m.nodes.col(a[k]));
+        hi_a = hi_a.cwiseMax(m.nodes.col(a[k]));
+        lo_b = lo_b.cwiseMin(m.nodes.col(b[k]));
+        hi_b = hi_b.cwiseMax(m.nodes.col(b[k]));
+      }
+      if ((lo_a.array() > hi_b.array() + 1e-6).any() || (lo_b.array() > hi_a.array() + 1e-6).any())
+        continue;
+      if (Touch(m, a, b)) ++hits;
     }
   }
   return hits;
@@ -201,9 +252,23 @@ TEST(Burr, SweptAcrossTheBoxRemovesAlongThePathOnly) {
   EXPECT_GT(bone.removed_by_region_mm3[static_cast<std::size_t>(m.FindRegion("footprint"))], 0.1);
 }
 
-// Known defect, not yet fixed: a burr swept across the surface leaves a few intersecting
-// triangle pairs (3 measured); the surface stays closed and the volume exact, but it is not
-// free of self-intersection. Enabled again once the carve checks intersections.
+// Known defect, not yet fixed: a burr swept across the surface folds it through itself. Measured
+// with this check: 10 171 intersecting pairs of non-degenerate triangles (>= 1e-6 mm^2) after the
+// 5 s sweep, from rim vertices sliding over non-adjacent triangles (the carve's flip test only
+// sees incident triangles). Undoing every move that makes a triangle touch a non-adjacent one
+// brings it to 0 here, but on the shoulder scene it stalls the burr at the acromion's coarse spur
+// tip (demo removal 1.18 -> 0.92 mm^3, the tip never removed), so it is not in the carve yet.
+TEST(Burr, DISABLED_SweptSurfaceHasNoFoldedTriangles) {
+  const Model m = BoneModelScene();
+  const BurrRun r =
+      RunBurr(m, 5.0, [](double t) { return Vec3(44 + 4.4 * t, 15, kTop + 1.2 - 0.1 * t); });
+  EXPECT_EQ(SelfIntersections(r.state.bones[0].surface, Vec3(55, 15, kTop), 14.0, 1e-6), 0);
+}
+
+// Known defect, not yet fixed: besides the folds above, the sweep leaves collapsed zero-area
+// triangles (vertices carved onto the same point of the burr sphere, then split again) lying on
+// an edge of a non-adjacent triangle (204 touching pairs even with the folds undone). The fix
+// needs an edge collapse of degenerate triangles in the carve.
 TEST(Burr, DISABLED_SweptSurfaceHasNoSelfIntersection) {
   const Model m = BoneModelScene();
   const BurrRun r =
