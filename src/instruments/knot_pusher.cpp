@@ -76,37 +76,17 @@ std::vector<Vec3> Limb(const State& state, int thread) {
 void AttachThread(const Model& model, int slot, const std::vector<Held>& held, State* state) {
   const KnotPusherOptions& opt = model.operations.knot_pusher;
   const Vec3 tip = state->tools[static_cast<std::size_t>(slot)].pose.position_mm;
-  int best_thread = -1, best_node = -1;
-  double best_d = opt.dist_limit_mm;
-  for (std::size_t t = 0; t < state->threads.size(); ++t) {
-    const bool taken = std::any_of(held.begin(), held.end(),
-                                   [&](const Held& h) { return h.thread == static_cast<int>(t); });
-    if (taken) continue;
-    const ThreadState& th = state->threads[t];
-    for (int n = 0; n < th.x.cols(); ++n) {
-      if (!Alive(th, n) || IsFixed(model, static_cast<int>(t), n)) continue;
-      const double d = (th.x.col(n) - tip).norm();
-      if (d < best_d) {
-        best_d = d;
-        best_thread = static_cast<int>(t);
-        best_node = n;
-      }
-    }
-  }
-  if (best_thread < 0) return;
-  ConstraintEnd end;
-  end.kind = ConstraintEnd::Kind::kThread;
-  end.index = best_thread;
-  end.nodes[0] = best_node;
-  end.weights[0] = 1;
-  const Vec3 p = state->threads[static_cast<std::size_t>(best_thread)].x.col(best_node);
-  const std::int64_t id =
-      AddToolSpring(state, slot, p, end, opt.thread_stiffness_n_per_mm, kKnotPusherTag);
+  std::vector<bool> taken(state->threads.size(), false);
+  for (const Held& h : held) taken[static_cast<std::size_t>(h.thread)] = true;
+  const CaughtNode c = CatchNearestThreadNode(model, slot, tip, opt.dist_limit_mm, taken,
+                                              opt.thread_stiffness_n_per_mm, kKnotPusherTag, state);
+  if (c.thread < 0) return;
   char detail[112];
   std::snprintf(detail, sizeof detail, "constraint=%lld node=%d distance_mm=%.3f held=%d",
-                static_cast<long long>(id), best_node, best_d, static_cast<int>(held.size()) + 1);
-  RecordEvent(model, slot, "thread_catch",
-              model.threads[static_cast<std::size_t>(best_thread)].name, detail, p, state);
+                static_cast<long long>(c.constraint), c.node, c.distance_mm,
+                static_cast<int>(held.size()) + 1);
+  RecordEvent(model, slot, "thread_catch", model.threads[static_cast<std::size_t>(c.thread)].name,
+              detail, state->threads[static_cast<std::size_t>(c.thread)].x.col(c.node), state);
 }
 
 // The closed half-hitch curve: a trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t) sampled

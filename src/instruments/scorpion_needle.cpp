@@ -98,36 +98,14 @@ void HoldThread(const Model& model, int slot, State* state) {
   }
   if (!Button1(tool) || ToolConstraint(*state, slot, kTissueTag) >= 0) return;
   const Vec3 tip = tool.pose.position_mm;
-  int best_thread = -1, best_node = -1;
-  double best_d = opt.dist_limit_1_mm;
-  for (std::size_t t = 0; t < state->threads.size(); ++t) {
-    const ThreadState& th = state->threads[t];
-    const std::vector<std::int32_t>& fixed = model.threads[t].fixed_nodes;
-    for (int n = 0; n < th.x.cols(); ++n) {
-      if (!th.node_alive.empty() && !th.node_alive[static_cast<std::size_t>(n)]) continue;
-      if (std::binary_search(fixed.begin(), fixed.end(), n)) continue;
-      const double d = (th.x.col(n) - tip).norm();
-      if (d < best_d) {
-        best_d = d;
-        best_thread = static_cast<int>(t);
-        best_node = n;
-      }
-    }
-  }
-  if (best_thread < 0) return;
-  ConstraintEnd end;
-  end.kind = ConstraintEnd::Kind::kThread;
-  end.index = best_thread;
-  end.nodes[0] = best_node;
-  end.weights[0] = 1;
-  const Vec3 p = state->threads[static_cast<std::size_t>(best_thread)].x.col(best_node);
-  const std::int64_t id =
-      AddToolSpring(state, slot, p, end, opt.thread_stiffness_n_per_mm, kThreadTag);
+  const CaughtNode c = CatchNearestThreadNode(model, slot, tip, opt.dist_limit_1_mm, {},
+                                              opt.thread_stiffness_n_per_mm, kThreadTag, state);
+  if (c.thread < 0) return;
   char detail[96];
   std::snprintf(detail, sizeof detail, "constraint=%lld node=%d distance_mm=%.3f",
-                static_cast<long long>(id), best_node, best_d);
-  RecordEvent(model, slot, "thread_catch",
-              model.threads[static_cast<std::size_t>(best_thread)].name, detail, p, state);
+                static_cast<long long>(c.constraint), c.node, c.distance_mm);
+  RecordEvent(model, slot, "thread_catch", model.threads[static_cast<std::size_t>(c.thread)].name,
+              detail, state->threads[static_cast<std::size_t>(c.thread)].x.col(c.node), state);
 }
 
 // Barycentric coordinates of p in the live tet of `body` that contains it (or, if none does

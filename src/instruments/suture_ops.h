@@ -80,6 +80,22 @@ std::int64_t ToolConstraint(const State& state, int slot, const char* tag);
 std::int64_t AddToolSpring(State* state, int slot, const Vec3& world_point_mm,
                            const ConstraintEnd& other, double stiffness_n_per_mm, const char* tag);
 
+/// A thread node caught by a tool: which, and how far from the point it was sought from.
+struct CaughtNode {
+  int thread = -1;  ///< -1: none within reach
+  int node = -1;
+  double distance_mm = 0;
+  std::int64_t constraint = -1;  ///< the tool spring made
+};
+
+/// Ties to tool slot `slot` (a `tag` spring of `stiffness_n_per_mm`, rest length 0) the live,
+/// not fixed thread node nearest `point_mm` within `reach_mm`, skipping threads for which
+/// `skip_thread[t]` is true (empty: none skipped); ties go to the lower thread, then node index.
+/// Returns thread = -1 and makes nothing when no node is within reach.
+CaughtNode CatchNearestThreadNode(const Model& model, int slot, const Vec3& point_mm,
+                                  double reach_mm, const std::vector<bool>& skip_thread,
+                                  double stiffness_n_per_mm, const char* tag, State* state);
+
 /// Current length of a constraint (distance between its two ends), mm.
 double ConstraintStretchMm(const State& state, std::int64_t id);
 

@@ -5,6 +5,8 @@
 #include "arthrosim/physics/constraints.h"
 #include "suture_ops.h"
 
+#include <algorithm>
+
 namespace arthrosim::instruments {
 
 SurfacePoint NearestSurfacePoint(const State& state, const collision::CollisionWorld& world,
@@ -66,6 +68,37 @@ std::int64_t AddToolSpring(State* state, int slot, const Vec3& world_point_mm,
   c.stiffness_n_per_mm = stiffness_n_per_mm;
   c.rest_length_mm = 0;
   return physics::AddConstraint(state, std::move(c));
+}
+
+CaughtNode CatchNearestThreadNode(const Model& model, int slot, const Vec3& point_mm,
+                                  double reach_mm, const std::vector<bool>& skip_thread,
+                                  double stiffness_n_per_mm, const char* tag, State* state) {
+  CaughtNode best;
+  best.distance_mm = reach_mm;
+  for (std::size_t t = 0; t < state->threads.size(); ++t) {
+    if (t < skip_thread.size() && skip_thread[t]) continue;
+    const ThreadState& th = state->threads[t];
+    const std::vector<std::int32_t>& fixed = model.threads[t].fixed_nodes;
+    for (int n = 0; n < th.x.cols(); ++n) {
+      if (!th.node_alive.empty() && !th.node_alive[static_cast<std::size_t>(n)]) continue;
+      if (std::binary_search(fixed.begin(), fixed.end(), n)) continue;
+      const double d = (th.x.col(n) - point_mm).norm();
+      if (d < best.distance_mm) {
+        best.distance_mm = d;
+        best.thread = static_cast<int>(t);
+        best.node = n;
+      }
+    }
+  }
+  if (best.thread < 0) return best;
+  ConstraintEnd end;
+  end.kind = ConstraintEnd::Kind::kThread;
+  end.index = best.thread;
+  end.nodes[0] = best.node;
+  end.weights[0] = 1;
+  const Vec3 p = state->threads[static_cast<std::size_t>(best.thread)].x.col(best.node);
+  best.constraint = AddToolSpring(state, slot, p, end, stiffness_n_per_mm, tag);
+  return best;
 }
 
 double ConstraintStretchMm(const State& state, std::int64_t id) {
