@@ -54,6 +54,24 @@ TEST(Grasper, GraspedPointFollowsTheToolAndLetsGoWhenTheJawOpens) {
   EXPECT_TRUE(s.soft_bodies[0].x.allFinite());
 }
 
+TEST(Grasper, WithdrawingTheInstrumentReleasesItsHold) {
+  const Model m = testing::SlabModel();
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "grasper");
+  const Vec3 start(25, 10, 4.4);
+  TakeHold(&d, start);
+  const std::int64_t id = GraspId(s);
+  d.frame.tools[0].instrument = -1;  // withdrawn through its portal with the jaw still closed
+  d.Step(start + Vec3(0, 0, 20), 1.0);
+  EXPECT_EQ(physics::FindConstraint(s, id), nullptr) << "the tissue stays tied to an empty slot";
+  EXPECT_TRUE(physics::FindConstraintsByEnd(s, ConstraintEnd::Kind::kTool, 0).empty());
+  ASSERT_EQ(d.Events("release").size(), 1u);
+  EXPECT_EQ(d.Events("release")[0].body, "tendon");
+  EXPECT_NE(d.Events("release")[0].detail.find("tag=grasp reason=withdrawn"), std::string::npos)
+      << d.Events("release")[0].detail;
+  EXPECT_TRUE(s.soft_bodies[0].x.allFinite());
+}
+
 TEST(Grasper, ReleasesWhenTheStretchExceedsDistLimit) {
   const Model m = testing::SlabModel();
   State s = MakeInitialState(m);
