@@ -119,7 +119,7 @@ Coverage BurrCoverage(const Vec3& dir_local, double lens_roll, double head_roll,
   state.camera.head_roll_rad = head_roll;
   ViewSpec spec = Spec(View::kScope, w, h);
   spec.overlay = false;
-  spec.distortion = 0.0;  // rectilinear: the silhouette of a sphere has an analytic size
+  spec.distortion = 0.0;       // rectilinear: the silhouette of a sphere has an analytic size
   spec.auto_exposure = false;  // the same gain with and without the burr
   *radius_px = 0.5 * spec.field_stop * std::min(w, h);
   Image empty, with;
