@@ -1,6 +1,8 @@
 // The grasping demonstrations (trajectories/ops/{grasper,retriever,hook}.yaml) run by the
 // arthrosim binary on the shoulder scene; each outcome is checked from the run file alone (the
 // scenario only for its region and landmark definitions), as scoring reads it.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -20,7 +22,9 @@ const std::string kScene = kSource + "/scenarios/rotator_cuff_repair.yaml";
 // Runs trajectories/ops/<name>.yaml on the shoulder scene; returns the run file.
 std::string RunDemo(const std::string& name) {
   const std::string out =
-      (std::filesystem::temp_directory_path() / ("arthrosim_grasp_demo_" + name + ".h5")).string();
+      (std::filesystem::temp_directory_path() /
+       ("arthrosim_grasp_demo_" + name + "_" + std::to_string(getpid()) + ".h5"))
+          .string();
   const std::string cmd = kBinary + " run " + kScene + " --trajectory " + kSource +
                           "/trajectories/ops/" + name + ".yaml --quiet --out " + out +
                           " > /dev/null";

@@ -3,6 +3,8 @@
 // third thread nearby) and throws a half hitch; button 2 slides the knot to the target node and
 // lets go; the knot then holds the loop (pulling the edge toward the anchor when the loop is
 // short); the pull test tells a good knot from one whose knot springs are too soft.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -25,7 +27,9 @@ constexpr int kEdgeNode = 447;   // slab node (30, 10, 4): top of the torn edge
 const Vec3 kTakeAt(35, 10, 29);  // where the two limbs pass 1 mm either side of the tool
 
 Model KnotModel(const std::string& knot_options = "") {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "arthrosim_knot_scene";
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() /
+      ("arthrosim_knot_scene_" + std::to_string(getpid()));  // parallel test processes apart
   std::filesystem::create_directories(dir);
   { std::ofstream(dir / "slab.vtk") << testing::WriteSlabVtk(); }
   const std::string yaml = R"(name: knot_slab

@@ -3,6 +3,8 @@
 // [0, 20], z in [0, 4] mm, 2 mm Kuhn-cube tets) fixed at x = 0 with its torn edge (`tendon_edge`)
 // at x = 30, a suture thread above it, no gravity; written to a temporary folder and loaded as
 // a scenario. Tool helpers drive one slot through sim::Step.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <array>
@@ -60,7 +62,8 @@ inline std::string WriteSlabVtk() {
 /// through its thickness make it far stiffer in bending than the beam formula says.
 inline Model SlabModel(const std::string& extra = "", double young_modulus_pa = 5e6) {
   const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / "arthrosim_suture_scene";
+      std::filesystem::temp_directory_path() /
+      ("arthrosim_suture_scene_" + std::to_string(getpid()));  // parallel test processes apart
   std::filesystem::create_directories(dir);
   { std::ofstream(dir / "slab.vtk") << WriteSlabVtk(); }
   const std::string yaml =
