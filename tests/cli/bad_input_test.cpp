@@ -62,8 +62,8 @@ std::vector<Case> LoadCases() {
   return cases;
 }
 
-// The files the cases share, made once: a valid run, an HDF5 file that is not a run, and the
-// first half of the valid run.
+// The files the cases share, made once: a valid run, an HDF5 file that is not a run, the first
+// half of the valid run, and a text file named .h5.
 class BadInput : public ::testing::TestWithParam<Case> {
  protected:
   static void SetUpTestSuite() {
@@ -83,17 +83,20 @@ class BadInput : public ::testing::TestWithParam<Case> {
     std::ifstream in(run_, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     std::ofstream(truncated_, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    text_h5_ = (root_ / "text_named_h5.h5").string();
+    std::ofstream(text_h5_) << "a text file named like an HDF5 session or run file\n";
   }
   static void TearDownTestSuite() { fs::remove_all(root_); }
 
   static std::string Expand(std::string s, const std::string& out) {
-    const std::array<std::pair<const char*, std::string>, 6> subs = {
+    const std::array<std::pair<const char*, std::string>, 7> subs = {
         {{"{bad}", kBad},
          {"{scenes}", kScenes},
          {"{out}", out},
          {"{run}", run_},
          {"{notrun}", notrun_},
-         {"{truncated_run}", truncated_}}};
+         {"{truncated_run}", truncated_},
+         {"{text_h5}", text_h5_}}};
     for (const auto& [key, value] : subs) {
       for (std::size_t at = s.find(key); at != std::string::npos; at = s.find(key, at)) {
         s.replace(at, std::string(key).size(), value);
@@ -104,11 +107,11 @@ class BadInput : public ::testing::TestWithParam<Case> {
   }
 
   static fs::path root_;
-  static std::string run_, notrun_, truncated_;
+  static std::string run_, notrun_, truncated_, text_h5_;
 };
 
 fs::path BadInput::root_;
-std::string BadInput::run_, BadInput::notrun_, BadInput::truncated_;
+std::string BadInput::run_, BadInput::notrun_, BadInput::truncated_, BadInput::text_h5_;
 
 TEST_P(BadInput, ExitsWithItsCodeAndNamesTheFault) {
   const Case& c = GetParam();
