@@ -134,13 +134,16 @@ std::string XdmfText(const XdmfRun& run, XdmfDialect dialect) {
   return text;
 }
 
-void WriteXdmfFile(const std::string& path, const XdmfRun& run, XdmfDialect dialect) {
+namespace {
+
+// Writes `path` through `path.tmp` and a rename, so a reader never sees a partial file; `write`
+// fills the stream. The temporary is removed on failure.
+template <class Write>
+void WriteThroughTemporary(const std::string& path, const Write& write) {
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    EmitXdmf(run, dialect, [&out](const std::string& part) {
-      out.write(part.data(), static_cast<std::streamsize>(part.size()));
-    });
+    write(out);
     out.close();
     if (!out) {
       std::remove(tmp.c_str());
@@ -155,23 +158,20 @@ void WriteXdmfFile(const std::string& path, const XdmfRun& run, XdmfDialect dial
   }
 }
 
+}  // namespace
+
+void WriteXdmfFile(const std::string& path, const XdmfRun& run, XdmfDialect dialect) {
+  WriteThroughTemporary(path, [&](std::ofstream& out) {
+    EmitXdmf(run, dialect, [&out](const std::string& part) {
+      out.write(part.data(), static_cast<std::streamsize>(part.size()));
+    });
+  });
+}
+
 void WriteFileAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+  WriteThroughTemporary(path, [&](std::ofstream& out) {
     out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    out.close();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error("cannot write '" + tmp + "'");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error("cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
-  }
+  });
 }
 
 std::string XdmfPathFor(const std::string& h5_path, XdmfDialect dialect) {
