@@ -133,20 +133,10 @@ class MshReader {
       } else if (name == "PartitionedEntities") {
         c_.Fail("$PartitionedEntities", "partitioned meshes are not supported; save unpartitioned");
       } else if (name == "Nodes") {
-        if (have_nodes) c_.Fail("$Nodes", "a second $Nodes section is not supported");
-        if (v4_)
-          ReadNodes4();
-        else
-          ReadNodes2();
-        have_nodes = true;
+        ReadOnce(name, &have_nodes, v4_ ? &MshReader::ReadNodes4 : &MshReader::ReadNodes2);
       } else if (name == "Elements") {
         if (!have_nodes) c_.Fail("$Elements", "$Elements before $Nodes");
-        if (have_elements) c_.Fail("$Elements", "a second $Elements section is not supported");
-        if (v4_)
-          ReadElements4();
-        else
-          ReadElements2();
-        have_elements = true;
+        ReadOnce(name, &have_elements, v4_ ? &MshReader::ReadElements4 : &MshReader::ReadElements2);
       } else {
         SkipSection(name);  // $Periodic, $NodeData, comments...: not needed by the simulator
       }
@@ -293,11 +283,29 @@ class MshReader {
     ExpectEnd("Entities");
   }
 
+  // Reads section `name` with `read`; *seen records it, and a second one is an error.
+  void ReadOnce(const std::string& name, bool* seen, void (MshReader::*read)()) {
+    if (*seen) c_.Fail("$" + name, "a second $" + name + " section is not supported");
+    (this->*read)();
+    *seen = true;
+  }
+
+  // The head of an MSH 4 $Nodes or $Elements section (`item` "node" or "element"): the block
+  // count, the total count (each item at least total_ascii_min / total_bin_min bytes), and the
+  // smallest and largest tag (not needed). Returns {block count, total count}.
+  std::pair<std::int64_t, std::int64_t> ReadSectionHead4(const std::string& item,
+                                                         std::size_t total_ascii_min,
+                                                         std::size_t total_bin_min) {
+    const std::int64_t nblocks = val_.Count("number of " + item + " blocks", 8, 20);
+    const std::int64_t total =
+        val_.Count("number of " + item + "s", total_ascii_min, total_bin_min);
+    val_.Size("min " + item + " tag");
+    val_.Size("max " + item + " tag");
+    return {nblocks, total};
+  }
+
   void ReadNodes4() {
-    const std::int64_t nblocks = val_.Count("number of node blocks", 8, 20);
-    const std::int64_t total = val_.Count("number of nodes", 8, 32);
-    val_.Size("min node tag");
-    val_.Size("max node tag");
+    const auto [nblocks, total] = ReadSectionHead4("node", 8, 32);
     std::vector<std::int64_t> tags;
     for (std::int64_t b = 0; b < nblocks; ++b) {
       const int dim = val_.IntIn("node block entity dimension", 0, 3);
@@ -329,10 +337,7 @@ class MshReader {
   }
 
   void ReadElements4() {
-    const std::int64_t nblocks = val_.Count("number of element blocks", 8, 20);
-    const std::int64_t total = val_.Count("number of elements", 4, 16);
-    val_.Size("min element tag");
-    val_.Size("max element tag");
+    const auto [nblocks, total] = ReadSectionHead4("element", 4, 16);
     std::int64_t seen = 0;
     const std::vector<int> none;
     std::int32_t nodes[4];

@@ -203,11 +203,17 @@ TEST(ConvenienceReadersTest, PickTheRightElements) {
   for (std::size_t i = 0; i < faces.size(); ++i) EXPECT_EQ(b.tris[i], faces[i].nodes);
 }
 
+// `a` written to the temporary file `name` by `write` and read back.
+MeshData WrittenAndRead(const MeshData& a, const std::string& name,
+                        void (*write)(const std::string&, const MeshData&)) {
+  const std::string path = TempPath(name);
+  write(path, a);
+  return ReadMesh(path);
+}
+
 TEST(RoundTripTest, Msh41KeepsEverythingBitExact) {
   const MeshData a = ReadMesh(DataPath("box_msh41_bin.msh"));
-  const std::string path = TempPath("round.msh");
-  WriteMsh41Ascii(path, a);
-  const MeshData b = ReadMesh(path);
+  const MeshData b = WrittenAndRead(a, "round.msh", WriteMsh41Ascii);
   EXPECT_EQ(b.volume.nodes, a.volume.nodes);  // shortest round-trip text: bit-exact
   ExpectSameElements(a, b);
   ExpectSameGroups(a, b);
@@ -215,9 +221,7 @@ TEST(RoundTripTest, Msh41KeepsEverythingBitExact) {
 
 TEST(RoundTripTest, VtkKeepsNodesElementsAndPhysicalTags) {
   const MeshData a = ReadMesh(DataPath("box_msh22.msh"));
-  const std::string path = TempPath("round.vtk");
-  WriteVtk(path, a);
-  const MeshData b = ReadMesh(path);
+  const MeshData b = WrittenAndRead(a, "round.vtk", WriteVtk);
   EXPECT_EQ(b.volume.nodes, a.volume.nodes);
   ExpectSameElements(a, b);
   EXPECT_EQ(b.tet_physical, a.tet_physical);
@@ -227,9 +231,7 @@ TEST(RoundTripTest, VtkKeepsNodesElementsAndPhysicalTags) {
 
 TEST(RoundTripTest, ObjKeepsTrianglesAndLines) {
   const MeshData a = ReadMesh(DataPath("box_msh41.msh"));
-  const std::string path = TempPath("round.obj");
-  WriteObj(path, a);
-  const MeshData b = ReadMesh(path);
+  const MeshData b = WrittenAndRead(a, "round.obj", WriteObj);
   EXPECT_EQ(b.surface.nodes, a.surface.nodes);
   EXPECT_EQ(b.surface.tris, a.surface.tris);
   EXPECT_EQ(b.lines.edges, a.lines.edges);
@@ -254,14 +256,19 @@ TEST(RoundTripTest, StlBinaryKeepsFloatExactSurface) {
   EXPECT_NEAR(std::abs(EnclosedVolume(b.surface)), 0.5 * 1.25 * 2.0, 1e-15);
 }
 
+// The volume of `m` is the one tet `t`.
+void ExpectOnlyTet(const MeshData& m, const Tet& t) {
+  ASSERT_EQ(m.volume.tets.size(), 1u);
+  EXPECT_EQ(m.volume.tets[0], t);
+}
+
 TEST(MshTest, SparseNodeTagsAreRenumberedInFileOrder) {
   const std::string v2 =
       "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n"
       "100 0 0 0\n7 1 0 0\n5000000000 0 1 0\n3 0 0 1\n$EndNodes\n"
       "$Elements\n2\n1 15 2 0 1 7\n2 4 2 0 1 100 7 5000000000 3\n$EndElements\n";
   const MeshData a = ParseMesh("sparse.msh", v2);
-  ASSERT_EQ(a.volume.tets.size(), 1u);
-  EXPECT_EQ(a.volume.tets[0], (Tet{0, 1, 2, 3}));
+  ExpectOnlyTet(a, Tet{0, 1, 2, 3});
   EXPECT_EQ(a.node_tags, (std::vector<std::int64_t>{100, 7, 5000000000, 3}));
   EXPECT_EQ(a.volume.nodes.col(2), Vec3(0, 1, 0));
 
@@ -272,8 +279,7 @@ TEST(MshTest, SparseNodeTagsAreRenumberedInFileOrder) {
       "3 1 1 2\n3\n40\n1 0 0 0.1 0.2 0.3\n0 0 0 0.4 0.5 0.6\n$EndNodes\n"
       "$Elements\n1 1 1 1\n3 1 4 1\n1 40 3 12 90\n$EndElements\n";
   const MeshData b = ParseMesh("sparse4.msh", v4);
-  ASSERT_EQ(b.volume.tets.size(), 1u);
-  EXPECT_EQ(b.volume.tets[0], (Tet{3, 2, 1, 0}));
+  ExpectOnlyTet(b, Tet{3, 2, 1, 0});
   EXPECT_EQ(b.volume.nodes.col(3), Vec3(0, 0, 0));  // parametric u v w skipped
   EXPECT_EQ(b.volume.nodes.col(0), Vec3(0, 0, 1));
 }

@@ -76,45 +76,31 @@ TEST(OrientTest, DegenerateTetsAreListedNotFatalAndScaleInvariant) {
   }
 }
 
+// OrientAndCheck throws on `m` an InputError naming `field`, its message holding `message`.
+void ExpectOrientError(TetMesh m, const std::string& field, const std::string& message = "") {
+  try {
+    OrientAndCheck(&m, "f.msh");
+    ADD_FAILURE() << "no error for " << field;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), field);
+    EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+  }
+}
+
 TEST(OrientTest, FatalProblemsNameTheElementOrNode) {
-  {
-    TetMesh m = UnitTet();
-    m.tets.push_back({0, 1, 2, 4});
-    try {
-      OrientAndCheck(&m, "f.msh");
-      FAIL();
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.field(), "tet 1");
-      EXPECT_NE(std::string(e.what()).find("out of range [0, 4)"), std::string::npos) << e.what();
-    }
-  }
-  {
-    TetMesh m = UnitTet();
-    m.tets.push_back({0, 1, 1, 3});
-    try {
-      OrientAndCheck(&m, "f.msh");
-      FAIL();
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.field(), "tet 1");
-      EXPECT_NE(std::string(e.what()).find("appears twice"), std::string::npos) << e.what();
-    }
-  }
-  {
-    TetMesh m = UnitTet();
-    m.nodes(1, 2) = std::numeric_limits<double>::infinity();
-    try {
-      OrientAndCheck(&m, "f.msh");
-      FAIL();
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.field(), "node 2");
-    }
-  }
-  {
-    TriMesh s;
-    s.nodes = UnitTet().nodes;
-    s.tris = {{0, 1, -1}};
-    EXPECT_THROW(OrientAndCheck(&s, "f.obj"), InputError);
-  }
+  TetMesh out_of_range = UnitTet();
+  out_of_range.tets.push_back({0, 1, 2, 4});
+  ExpectOrientError(out_of_range, "tet 1", "out of range [0, 4)");
+  TetMesh repeated = UnitTet();
+  repeated.tets.push_back({0, 1, 1, 3});
+  ExpectOrientError(repeated, "tet 1", "appears twice");
+  TetMesh infinite = UnitTet();
+  infinite.nodes(1, 2) = std::numeric_limits<double>::infinity();
+  ExpectOrientError(infinite, "node 2");
+  TriMesh negative_index;
+  negative_index.nodes = UnitTet().nodes;
+  negative_index.tris = {{0, 1, -1}};
+  EXPECT_THROW(OrientAndCheck(&negative_index, "f.obj"), InputError);
 }
 
 TEST(OrientTest, UnreferencedNodesAreCounted) {

@@ -146,10 +146,11 @@ enum class Preconditioner : std::uint8_t {
                   ///< SoftBodyState::x_factor (the rest positions while it is empty), and
                   ///< W per-node rotations taking the anchor's node rotations to the current
                   ///< ones (node rotation: polar of the sum of the incident element rotations).
-                  ///< Refactored after a topology/rest change, a new dt or a new anchor; a step
-                  ///< whose CG needs more than SolverOptions::refactor_iterations sets the anchor
-                  ///< to its end positions (kept in State, so a restored run rebuilds the same
-                  ///< factor)
+                  ///< A step whose CG needs more than SolverOptions::refactor_iterations requests
+                  ///< a new factor of the mesh and positions at its end, used refactor_lag_steps
+                  ///< steps later (topology edits meanwhile: removed nodes drop out, new nodes
+                  ///< get their block-Jacobi inverse); the factor's mesh and anchor are kept in
+                  ///< State, so a restored run rebuilds the same factors
 };
 
 /// Soft-tissue solver options (scenario section `solver:`): implicit Euler + CG as SOFA's
@@ -164,6 +165,10 @@ struct SolverOptions {
   /// preconditioner stays the warped rest factor). 10: with the ~5 ms refactorisation, the
   /// driven benchmark gives median 2.6 / mean 3.3 ms per step (12: 2.9 / 3.2; 8: 2.5 / 3.8).
   int refactor_iterations = 10;
+  /// Deferred refactorisation: a new factor requested at step n (the step that needed more
+  /// than refactor_iterations) is prepared in equal parts over steps n + 1 ... n + lag - 1 and
+  /// used from step n + lag on, whatever the wall clock (1 = the next step, all at once).
+  int refactor_lag_steps = 1;
 };
 
 /// Contact parameters (scenario section `contact:`, all optional; docs/contact-model.md explains
@@ -234,6 +239,9 @@ struct Options {
   std::string output_file = "run.h5";
   int output_every_steps = 1;     ///< write a frame every N steps
   double flush_interval_s = 1.0;  ///< HDF5 flush at least this often in simulated time
+  /// A full checkpoint of the State (for `run --resume` / `run --from`) is written at the first
+  /// frame of every checkpoint_every_s of simulated time, s (and at the end of a run).
+  double checkpoint_every_s = 5.0;
 };
 
 /// Everything a scenario defines. Immutable after loading.

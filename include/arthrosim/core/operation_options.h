@@ -78,6 +78,9 @@ struct GraspOptions {
 struct ScorpionNeedleOptions {
   double dist_limit_1_mm = 5.0;  ///< Dist_limit_1: reach to the thread node it ties to the tool
   double dist_limit_2_mm = 2.0;  ///< Dist_limit_2: tissue grasp reach and releasing stretch
+  /// Jaw value (0 open .. 1 closed) from which button 1 holds tissue: the jaws close on the
+  /// tissue between them, so jaws slid open around a tendon do not take it on the way in.
+  double grasp_jaw = 0.35;
   double node_spacing_mm = 1.0;  ///< spacing of the thread nodes laid out of the exit point
   int nodes_through = 3;         ///< the node this many further sits at the exit (upper) point
   double tissue_stiffness_n_per_mm = 5.0;  ///< tool-tissue grasp spring, N/mm

@@ -20,10 +20,22 @@ struct SoftBodyState {
   std::vector<mesh::Tet> tets;  ///< element connectivity; initial tets first, splits appended
   std::vector<std::uint8_t> tet_alive;  ///< 1 = element present, 0 = removed (cut/shaved)
   Points dv_warm;                       ///< 3 x N last velocity increment, CG warm start
-  /// 3 x N positions (mm) at which the soft-tissue CG preconditioner was last factored; empty =
-  /// rest positions, missing columns = their rest positions. Set by the solver; kept here so a
-  /// restored run rebuilds the same preconditioner and continues bit for bit.
+  /// The mesh and positions the soft-tissue CG preconditioner in use was factored from (set by
+  /// the solver; kept here so a restored run rebuilds the same preconditioner and continues bit
+  /// for bit; docs/contact-model.md "Deferred refactorisation"):
+  /// x_factor: 3 x M anchor positions (mm); empty = factor_rest, missing columns = their rest.
   Points x_factor;
+  /// 3 x M rest positions of the factored mesh (its M nodes); empty = x_rest.
+  Points factor_rest;
+  /// Alive flags of the factored mesh's tets (tets past its end are not in it); empty =
+  /// tet_alive.
+  std::vector<std::uint8_t> factor_alive;
+  /// The same three for the factor being prepared, which replaces them at
+  /// State::factor_switch_step (meaningful only while that is >= 0: at the switch the two sets
+  /// are swapped, so these then hold the previous factor's, kept for their storage).
+  Points x_factor_next;
+  Points factor_rest_next;
+  std::vector<std::uint8_t> factor_alive_next;
   /// Rest volume taken away by cutting and shaving so far, mm^3 (sum of removed tets' rest
   /// volumes plus the rest volume shaved off surviving tets).
   double removed_volume_mm3 = 0;
@@ -143,6 +155,16 @@ struct AnchorState {
 
 inline constexpr int kToolSlots = 2;
 
+/// Controller state of a synthetic script's force push on one tool slot (input::ScriptSource):
+/// the push integrates the force fed back after every step, so its future frames depend on this
+/// history. Kept in State (set by the run loop after each input frame) so that a run restored
+/// from a checkpoint continues it bit for bit.
+struct ScriptPushState {
+  std::int32_t action = -1;  ///< index of the push in the slot's actions; -1 = none yet
+  double depth_mm = 0;       ///< advance along the tool axis past the push's nominal start, mm
+  double t_prev_s = 0;       ///< time of the last integration, s
+};
+
 struct State {
   std::int64_t step = 0;
   double time_s = 0;
@@ -158,6 +180,12 @@ struct State {
   std::vector<ToolContact> tool_contacts;  ///< touching (tool, body) pairs, sorted (collision)
   std::vector<BoneHole> holes;             ///< pilot holes, in creation order
   std::vector<AnchorState> anchors;        ///< seated anchors, in creation order
+  /// Force-push controllers of the input script, one per slot (default when the input is not a
+  /// script): input state that a checkpoint must carry, not simulation state.
+  std::array<ScriptPushState, kToolSlots> script_push{};
+  /// Step at whose start the soft-tissue preconditioner being prepared (SoftBodyState::
+  /// x_factor_next ...) replaces the one in use; -1 when none is being prepared.
+  std::int64_t factor_switch_step = -1;
 };
 
 struct Model;

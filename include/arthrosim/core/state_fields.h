@@ -25,8 +25,8 @@ enum class FieldStore : std::uint8_t {
   kGroup,    ///< a nested entity: its own fields, in its group (bodies, slots, camera...)
   kNested,   ///< a nested value whose fields are stored in this entity's group
   kDerived,  ///< not stored: the reader recomputes it (documented with the dataset list)
-  kNone,     ///< not stored: velocities, rest positions and solver warm starts (a run file
-             ///< replays what happened; it is not a checkpoint)
+  kNone,     ///< not in the frames: velocities, rest positions, solver warm starts and input
+             ///< controllers are kept only in the run file's checkpoints (/checkpoints)
 };
 
 /// What a growing per-frame array's length follows.
@@ -68,6 +68,11 @@ void VisitFields(S& b, V&& v) {
     FieldInfo{"element_alive", "", FieldStore::kFrame, FieldDim::kElements, FieldFill::kZero});
   v(b.dv_warm, FieldInfo{"dv_warm", "mm/s", FieldStore::kNone});
   v(b.x_factor, FieldInfo{"x_factor", "mm", FieldStore::kNone});
+  v(b.factor_rest, FieldInfo{"factor_rest", "mm", FieldStore::kNone});
+  v(b.factor_alive, FieldInfo{"factor_alive", "", FieldStore::kNone});
+  v(b.x_factor_next, FieldInfo{"x_factor_next", "mm", FieldStore::kNone});
+  v(b.factor_rest_next, FieldInfo{"factor_rest_next", "mm", FieldStore::kNone});
+  v(b.factor_alive_next, FieldInfo{"factor_alive_next", "", FieldStore::kNone});
   v(b.removed_volume_mm3, FieldInfo{"removed_volume", "mm3", FieldStore::kFrame});
   v(b.cauterized, FieldInfo{"cauterized", "", FieldStore::kFrame, FieldDim::kNodes,
                             FieldFill::kZero, false, true});
@@ -201,6 +206,15 @@ void VisitFields(S& a, V&& v) {
   v(a.angle_deg, FieldInfo{"angle", "deg", FieldStore::kFrame});
 }
 
+/// Every member of a script force-push controller (checkpoints only).
+template <class S, class V>
+requires FieldsOf<S, ScriptPushState>
+void VisitFields(S& p, V&& v) {
+  v(p.action, FieldInfo{"action", "", FieldStore::kNone});
+  v(p.depth_mm, FieldInfo{"depth", "mm", FieldStore::kNone});
+  v(p.t_prev_s, FieldInfo{"t_prev", "s", FieldStore::kNone});
+}
+
 /// Every member of the State (root datasets and the entity groups).
 template <class S, class V>
 requires FieldsOf<S, State>
@@ -219,6 +233,8 @@ void VisitFields(S& s, V&& v) {
   v(s.tool_contacts, FieldInfo{"tool_contacts", "", FieldStore::kRecords});
   v(s.holes, FieldInfo{"holes", "", FieldStore::kRecords});
   v(s.anchors, FieldInfo{"anchors", "", FieldStore::kRecords});
+  v(s.script_push, FieldInfo{"script_push", "", FieldStore::kNone});
+  v(s.factor_switch_step, FieldInfo{"factor_switch_step", "", FieldStore::kNone});
 }
 
 /// The table's entry for `member` of `object` (e.g. FieldOf(tri_mesh, tri_mesh.tris).name is
