@@ -27,6 +27,7 @@ struct BlockLdlt::Impl {
   // Own numeric factorisation (left-looking, supernodal) on the pattern above: per supernode a
   // dense column-major panel of (w + |R|) rows (its triangle, then the rows R) by w columns.
   std::vector<std::int64_t> panel_at;    // supernode s: panel from panel_at[s]
+  std::vector<double> cost;              // supernode s: multiply-adds done at s (updates + own)
   std::vector<std::int32_t> sn_of_col;   // column -> supernode
   std::vector<std::int64_t> a_to_panel;  // entry p of a -> its panel position
   std::vector<double> panel, dvals, scaled, sums;
@@ -141,6 +142,8 @@ void BlockLdlt::Analyze(std::int32_t n, std::span<const std::array<std::int32_t,
   Impl& m = *impl_;
   n_ = n;
   ok_ = false;
+  failed_ = false;
+  next_slice_ = 0;
   const Eigen::Index dim = 3 * static_cast<Eigen::Index>(n);
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(static_cast<std::size_t>(6 * n) + 9 * pairs.size());
@@ -267,19 +270,65 @@ void BlockLdlt::Symbolic() {
       m.a_to_panel[static_cast<std::size_t>(p)] = m.panel_at[sn] + (col - c0) * (w + rc) + i;
     }
   }
+  SupernodeCosts();
 }
 
-bool BlockLdlt::NumericFactor() {
+void BlockLdlt::SupernodeCosts() {
+  // The multiply-adds NumericFactor does at each supernode: the updates it receives (for each
+  // source d, its rows grouped by target supernode, as the left-looking loop visits them) and
+  // its own dense factorisation. A pure function of the pattern.
   Impl& m = *impl_;
   const std::size_t ns = m.sn_col.size() - 1;
+  m.cost.assign(ns, 0.0);
+  for (std::size_t d = 0; d < ns; ++d) {
+    const auto dw = static_cast<double>(m.sn_col[d + 1] - m.sn_col[d]);
+    const std::int32_t* rd = m.rows.data() + m.sn_row[d];
+    const std::int64_t drc = m.sn_row[d + 1] - m.sn_row[d];
+    m.cost[d] += dw * dw * (dw / 3.0 + static_cast<double>(drc)) + dw;
+    for (std::int64_t p0 = 0; p0 < drc;) {
+      const std::int32_t t = m.sn_of_col[static_cast<std::size_t>(rd[p0])];
+      const std::int32_t end = m.sn_col[static_cast<std::size_t>(t) + 1];
+      std::int64_t q = p0;
+      while (q < drc && rd[q] < end) ++q;
+      m.cost[static_cast<std::size_t>(t)] +=
+          dw * static_cast<double>(q - p0) * static_cast<double>(drc - p0);
+      p0 = q;
+    }
+  }
+}
+
+std::int64_t BlockLdlt::SliceBegin(int slice, int slices) const {
+  // First supernode of slice j: where the running cost reaches j / slices of the total.
+  const Impl& m = *impl_;
+  const auto ns = static_cast<std::int64_t>(m.cost.size());
+  if (slice <= 0) return 0;
+  if (slice >= slices) return ns;
+  double total = 0;
+  for (double c : m.cost) total += c;
+  const double target = total * static_cast<double>(slice) / static_cast<double>(slices);
+  double run = 0;
+  for (std::int64_t s = 0; s < ns; ++s) {
+    if (run >= target) return s;
+    run += m.cost[static_cast<std::size_t>(s)];
+  }
+  return ns;
+}
+
+void BlockLdlt::NumericBegin() {
+  Impl& m = *impl_;
   double* panel = m.panel.data();
   std::fill(m.panel.begin(), m.panel.end(), 0.0);
   const double* v = m.a.valuePtr();
   for (std::size_t p = 0; p < m.a_to_panel.size(); ++p) panel[m.a_to_panel[p]] = v[p];
   std::fill(m.head.begin(), m.head.end(), -1);
+}
+
+bool BlockLdlt::NumericRange(std::size_t s_begin, std::size_t s_end) {
+  Impl& m = *impl_;
+  double* panel = m.panel.data();
   std::int32_t* rel = m.rel.data();
   double* scaled = m.scaled.data();
-  for (std::size_t s = 0; s < ns; ++s) {
+  for (std::size_t s = s_begin; s < s_end; ++s) {
     const std::int32_t c0 = m.sn_col[s];
     const std::int64_t w = m.sn_col[s + 1] - c0;
     const std::int32_t* rs = m.rows.data() + m.sn_row[s];
@@ -368,11 +417,28 @@ bool BlockLdlt::NumericFactor() {
       for (std::int64_t r = 0; r < rc; ++r) b[r * w + k] = ps[k * ld + w + r];
     }
   }
-  for (std::size_t i = 0; i < m.dvals.size(); ++i) m.inv_d[i] = 1.0 / m.dvals[i];
+  if (s_end + 1 == m.sn_col.size()) {
+    for (std::size_t i = 0; i < m.dvals.size(); ++i) m.inv_d[i] = 1.0 / m.dvals[i];
+  }
   return true;
 }
 
 bool BlockLdlt::Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_blocks) {
+  BeginFactor(diag, pair_blocks);
+  return FactorSlice(0, 1);
+}
+
+bool BlockLdlt::FactorSlice(int slice, int slices) {
+  if (slice != next_slice_ || slice >= slices) return false;  // out of order: refuse
+  const auto b = static_cast<std::size_t>(SliceBegin(slice, slices));
+  const auto e = static_cast<std::size_t>(SliceBegin(slice + 1, slices));
+  failed_ = failed_ || !NumericRange(b, e);
+  ++next_slice_;
+  ok_ = !failed_ && next_slice_ == slices;
+  return !failed_;
+}
+
+void BlockLdlt::BeginFactor(std::span<const Mat3> diag, std::span<const Mat3> pair_blocks) {
   Impl& m = *impl_;
   double* v = m.a.valuePtr();
   for (std::int32_t i = 0; i < n_; ++i) {
@@ -389,8 +455,10 @@ bool BlockLdlt::Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_bl
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) v[q[3 * r + c]] = b(r, c);
   }
-  ok_ = NumericFactor();
-  return ok_;
+  ok_ = false;
+  failed_ = false;
+  next_slice_ = 0;
+  NumericBegin();
 }
 
 void BlockLdlt::Solve(double* x) const {

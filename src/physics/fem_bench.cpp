@@ -146,6 +146,8 @@ void RefineByCentroidSplits(State* state, int levels) {
       b.v = Points::Zero(3, n);
       b.dv_warm = Points::Zero(3, n);
       b.x_factor.resize(3, 0);
+      b.factor_rest.resize(3, 0);
+      b.factor_alive.clear();
       b.tets = std::move(tets);
       b.tet_alive.assign(b.tets.size(), 1);
     }

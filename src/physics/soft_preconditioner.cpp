@@ -49,138 +49,123 @@ void SoftSystem::BuildBlockJacobi(double h) {
   }
 }
 
-void SoftSystem::BuildPreconditioner(double h) {
+void SoftSystem::BuildPreconditioner(double h, State* state) {
   refactored_ = false;
+  factor_work_ = false;
   factor_ms_ = 0;
-  if (preconditioner_ == Preconditioner::kRestCholesky) {
+  uncovered_ = 0;
+  if (preconditioner_ == Preconditioner::kRestCholesky && state != nullptr) {
     const double t0 = Clock::now();
-    if (pattern_dirty_) AnalyzeFactor();
-    if (rest_dirty_ || anchor_dirty_ || factor_h_ != h) FactorRestSystem(h);
-    factor_ms_ = refactored_ ? MsSince(t0) : 0.0;
-    if (factor_.ok()) {
-      // Warp: the current node rotation (polar of the sum of incident element rotations, in
-      // (body, tet) order) times the inverse anchor rotation.
-      // Sums by one pass over the elements in (body, tet) order, which is each slot's incident
-      // order, so every sum is added in the same order as over its incident list (a slot that
-      // a merged tet holds twice counts that tet once).
-      node_sum_.assign(static_cast<std::size_t>(slots_), Mat3::Zero());
-      for (const Body& bd : bodies_) {
-        for (std::size_t t = 0; t < bd.rest.size(); ++t) {
-          if (!bd.alive[t] || bd.rest[t].degenerate) continue;
-          const auto& sl = bd.tet_slot[t];
-          for (int a = 0; a < 4; ++a) {
-            const std::int32_t slot = sl[static_cast<std::size_t>(a)];
-            bool repeated = false;
-            for (int q = 0; q < a; ++q)
-              repeated = repeated || sl[static_cast<std::size_t>(q)] == slot;
-            if (!repeated && free_[static_cast<std::size_t>(slot)])
-              node_sum_[static_cast<std::size_t>(slot)] += bd.rotation[t];
-          }
-        }
+    if (!active_ready_ || active_.h != h) {  // after a build or restore, or a new h: at once
+      StartFactor(ActiveSources(*state), h, &active_);
+      active_.ldlt.FactorSlice(0, 1);
+      active_ready_ = true;
+      refactored_ = true;
+      factor_work_ = true;
+    }
+    if (state->factor_switch_step >= 0) {
+      if (state->step >= state->factor_switch_step) {
+        SwitchFactor(h, state);
+      } else {
+        AdvancePending(*state, h, false);
       }
-      ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
-        // Side by side (vectorised); each lane's result depends on its own matrix only.
-        const auto b = static_cast<std::size_t>(begin);
-        PolarRotations(node_sum_.data() + b, node_rot_.data() + b, static_cast<int>(end - begin));
-        for (std::int64_t s = begin; s < end; ++s) {
-          const auto i = static_cast<std::size_t>(s);
-          node_rot_[i] = Mat3(node_rot_[i] * anchor_rot_[i].transpose());
-        }
-      });
+    }
+    if (active_.ldlt.ok() && CountUncovered() > 0) {
+      // Nodes added since the factor's mesh (a cut's split nodes): block Jacobi on them beside
+      // the factor converges badly (strongly coupled to the factored nodes), so the mesh of this
+      // step is factored at once, at the positions of its start (any pending one is dropped).
+      ReplaceFactorNow(h, state);
+    }
+    factor_ms_ = factor_work_ ? MsSince(t0) : 0.0;
+    if (active_.ldlt.ok()) {
+      WarpFactor();
+      if (uncovered_ > 0) BuildBlockJacobi(h);
       return;
     }
   }
   BuildBlockJacobi(h);
 }
 
-void SoftSystem::AnalyzeFactor() {
-  // Unknowns: free slots in slot order; pairs: kmat_'s live pairs between free slots (indexed
-  // like kmat_'s blocks, but the pattern and ordering depend on the set of pairs only).
+std::int32_t SoftSystem::CountUncovered() const {
   std::int32_t n = 0;
-  for (std::int32_t s = 0; s < slots_; ++s)
-    compact_[static_cast<std::size_t>(s)] = free_[static_cast<std::size_t>(s)] ? n++ : -1;
-  std::vector<std::array<std::int32_t, 2>> pairs(static_cast<std::size_t>(kmat_.block_capacity()),
-                                                 std::array<std::int32_t, 2>{-1, -1});
-  for (std::int32_t e = 0; e < kmat_.block_capacity(); ++e) {
-    if (!kmat_.block_live(e)) continue;
-    const std::int32_t r = compact_[static_cast<std::size_t>(kmat_.block_row(e))];
-    const std::int32_t c = compact_[static_cast<std::size_t>(kmat_.block_col(e))];
-    if (r >= 0 && c >= 0) pairs[static_cast<std::size_t>(e)] = {r, c};
+  for (std::int32_t s = 0; s < slots_; ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    if (free_[i] && active_.compact[i] < 0) ++n;
   }
-  factor_.Analyze(n, pairs);
-  fdiag_.assign(static_cast<std::size_t>(n), Mat3::Zero());
-  fpair_.assign(pairs.size(), Mat3::Zero());
-  pw_.setZero(3 * static_cast<Eigen::Index>(n));
-  pattern_dirty_ = false;
-  rest_dirty_ = true;
+  return n;
 }
 
-void SoftSystem::FactorRestSystem(double h) {
-  // The step matrix with the element rotations of the anchor positions. A function of rest
-  // data, topology, h and the anchor only, so it is identical after a restore.
+void SoftSystem::ReplaceFactorNow(double h, State* state) {
+  for (SoftBodyState& sb : state->soft_bodies) {
+    sb.x_factor = sb.x;
+    sb.factor_rest = sb.x_rest;
+    sb.factor_alive = sb.tet_alive;
+  }
+  state->factor_switch_step = -1;
+  pending_units_ = 0;
+  StartFactor(ActiveSources(*state), h, &active_);
+  active_.ldlt.FactorSlice(0, 1);
   refactored_ = true;
-  rest_dirty_ = false;
-  anchor_dirty_ = false;
-  factor_h_ = h;
-  for (Mat3& m : fdiag_) m.setZero();
-  for (Mat3& m : fpair_) m.setZero();
-  for (Mat3& m : anchor_rot_) m.setZero();
-  std::array<Mat3, 10> blocks;
+  factor_work_ = true;
+}
+
+// Warp: the current node rotation (polar of the sum of incident element rotations, in (body,
+// tet) order) times the inverse anchor rotation, for the free slots the factor covers; counts
+// the free slots it does not cover (new nodes since its mesh: block Jacobi).
+void SoftSystem::WarpFactor() {
+  // Sums by one pass over the elements in (body, tet) order, which is each slot's incident
+  // order, so every sum is added in the same order as over its incident list (a slot that a
+  // merged tet holds twice counts that tet once).
+  node_sum_.assign(static_cast<std::size_t>(slots_), Mat3::Zero());
   for (const Body& bd : bodies_) {
-    const double scale = h * (h + bd.beta);
     for (std::size_t t = 0; t < bd.rest.size(); ++t) {
       if (!bd.alive[t] || bd.rest[t].degenerate) continue;
       const auto& sl = bd.tet_slot[t];
-      const Mat3 f = DeformationGradient(bd.rest[t], Seg(xa_, sl[0]), Seg(xa_, sl[1]),
-                                         Seg(xa_, sl[2]), Seg(xa_, sl[3]));
-      const Mat3 rot = PolarRotation(f);
-      ElementStiffnessBlocks(bd.rest[t], rot, bd.lame, scale, &blocks);
       for (int a = 0; a < 4; ++a) {
-        const auto si = static_cast<std::size_t>(sl[static_cast<std::size_t>(a)]);
-        anchor_rot_[si] += rot;
-        const std::int32_t c = compact_[si];
-        if (c >= 0) fdiag_[static_cast<std::size_t>(c)] += blocks[static_cast<std::size_t>(a)];
-      }
-      for (int e = 0; e < 6; ++e) {
-        const std::int32_t idx = bd.tet_pair[t][static_cast<std::size_t>(e)];
-        if (idx < 0) continue;
-        const std::int32_t si =
-            sl[static_cast<std::size_t>(kTetEdges[static_cast<std::size_t>(e)][0])];
-        const std::int32_t sj =
-            sl[static_cast<std::size_t>(kTetEdges[static_cast<std::size_t>(e)][1])];
-        if (si < sj) {
-          fpair_[static_cast<std::size_t>(idx)] += blocks[static_cast<std::size_t>(4 + e)];
-        } else {
-          fpair_[static_cast<std::size_t>(idx)] +=
-              blocks[static_cast<std::size_t>(4 + e)].transpose();
-        }
+        const std::int32_t slot = sl[static_cast<std::size_t>(a)];
+        bool repeated = false;
+        for (int q = 0; q < a; ++q) repeated = repeated || sl[static_cast<std::size_t>(q)] == slot;
+        if (!repeated && free_[static_cast<std::size_t>(slot)])
+          node_sum_[static_cast<std::size_t>(slot)] += bd.rotation[t];
       }
     }
   }
-  for (std::int32_t s = 0; s < slots_; ++s) {
-    const auto i = static_cast<std::size_t>(s);
-    anchor_rot_[i] = PolarRotation(anchor_rot_[i]);
-    const std::int32_t c = compact_[i];
-    if (c >= 0)
-      fdiag_[static_cast<std::size_t>(c)].diagonal().array() += mass_[i] + h * alpha_mass_[i];
-  }
-  factor_.Factor(fdiag_, fpair_);
+  const std::vector<std::int32_t>& compact = active_.compact;
+  ParallelFor(slots_, 256, [&](std::int64_t begin, std::int64_t end) {
+    // Side by side (vectorised); each lane's result depends on its own matrix only.
+    const auto b = static_cast<std::size_t>(begin);
+    PolarRotations(node_sum_.data() + b, node_rot_.data() + b, static_cast<int>(end - begin));
+    for (std::int64_t s = begin; s < end; ++s) {
+      const auto i = static_cast<std::size_t>(s);
+      if (compact[i] >= 0) node_rot_[i] = Mat3(node_rot_[i] * active_.anchor_rot[i].transpose());
+    }
+  });
+  uncovered_ = CountUncovered();
+  pw_.setZero(3 * static_cast<Eigen::Index>(active_.nodes.size()));
 }
 
 void SoftSystem::Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const {
-  if (preconditioner_ == Preconditioner::kRestCholesky && factor_.ok()) {
+  if (preconditioner_ == Preconditioner::kRestCholesky && active_.ldlt.ok()) {
+    // Factor nodes no longer free (their elements were removed since) take 0 and give nothing:
+    // a principal part of the factor's inverse, still positive definite.
+    const std::vector<std::int32_t>& compact = active_.compact;
     for (std::int32_t s = 0; s < slots_; ++s) {
-      const std::int32_t c = compact_[static_cast<std::size_t>(s)];
-      if (c >= 0)
-        pw_.segment<3>(3 * c) = node_rot_[static_cast<std::size_t>(s)].transpose() * Seg(r, s);
+      const auto i = static_cast<std::size_t>(s);
+      const std::int32_t c = compact[i];
+      if (c < 0) continue;
+      pw_.segment<3>(3 * c) =
+          free_[i] ? Vec3(node_rot_[i].transpose() * Seg(r, s)) : Vec3(Vec3::Zero());
     }
-    factor_.Solve(pw_.data());
+    active_.ldlt.Solve(pw_.data());
     for (std::int32_t s = 0; s < slots_; ++s) {
-      const std::int32_t c = compact_[static_cast<std::size_t>(s)];
-      if (c >= 0) {
-        Seg(*z, s) = node_rot_[static_cast<std::size_t>(s)] * pw_.segment<3>(3 * c);
-      } else {
+      const auto i = static_cast<std::size_t>(s);
+      const std::int32_t c = compact[i];
+      if (!free_[i]) {
         Seg(*z, s).setZero();
+      } else if (c >= 0) {
+        Seg(*z, s) = node_rot_[i] * pw_.segment<3>(3 * c);
+      } else {
+        Seg(*z, s) = precond_[i] * Seg(r, s);
       }
     }
     return;

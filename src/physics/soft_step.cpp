@@ -36,13 +36,6 @@ void SoftSystem::Gather(const State& state) {
       Seg(v_, s) = sb.v.col(r.node);
       Seg(dv_, s) = sb.dv_warm.col(r.node);
     }
-    // Factor anchor: a change of any bit means a new factor (a pure function of State).
-    const Vec3 a =
-        r.node < sb.x_factor.cols() ? Vec3(sb.x_factor.col(r.node)) : Vec3(sb.x_rest.col(r.node));
-    if (!(Seg(xa_, s).array() == a.array()).all()) {
-      Seg(xa_, s) = a;
-      anchor_dirty_ = true;
-    }
   }
 }
 
@@ -386,7 +379,7 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   const bool assembled = product_ == SystemProduct::kAssembled;
   AssembleStiffness(h, h, assembled);
   BuildPointTerms(model, x_, contacts, springs, true);
-  BuildPreconditioner(h);
+  BuildPreconditioner(h, state);
   // b = h f - h (h + beta) K v - h alpha M v - h^2 C v on free slots.
   ApplyStiffness(v_, &tmp_);
   ApplyPointTerms(h * h, v_, &tmp_);
@@ -421,7 +414,8 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   // solved again from this solution, at most kCrossRounds times.
   for (int round = 0; round < kCrossRounds && contacts != nullptr; ++round) {
     if (!ActivateCrossedContacts(h, contacts)) break;
-    if (!(preconditioner_ == Preconditioner::kRestCholesky && factor_.ok())) BuildBlockJacobi(h);
+    if (!(preconditioner_ == Preconditioner::kRestCholesky && active_.ldlt.ok()) || uncovered_ > 0)
+      BuildBlockJacobi(h);
     last = SolvePcg(op, b_, &dv_, model.solver.cg_max_iterations, model.solver.cg_tolerance,
                     reference, &cg_scratch_);
     cg_total += last.iterations;
@@ -432,6 +426,7 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   stats.cg_relative_residual = last.relative_residual;
   stats.refactored = refactored_;
   stats.factor_ms = factor_ms_;
+  stats.factor_work = factor_work_;
 
   t0 = Clock::now();
   for (std::int32_t s = 0; s < slots_; ++s) {
@@ -448,9 +443,10 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   Scatter(state);
   FillOutputs(model, contacts, springs);
   if (preconditioner_ == Preconditioner::kRestCholesky && refactor_iterations_ > 0 &&
-      cg.iterations > refactor_iterations_) {
-    // The factor has drifted from the current rotations: anchor it at the new positions.
-    for (SoftBodyState& sb : state->soft_bodies) sb.x_factor = sb.x;
+      cg.iterations > refactor_iterations_ && state->factor_switch_step < 0) {
+    // The factor has drifted from the current rotations (or mesh): request one of the mesh and
+    // positions at the end of this step, used refactor_lag_ steps from now.
+    RequestFactor(state);
     stats.anchor_moved = true;
   }
   stats.update_ms = MsSince(t0);
@@ -469,6 +465,7 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
 
 void SoftSystem::BeginExternalStep(const State& state, Eigen::Ref<Eigen::VectorXd> x_mm,
                                    Eigen::Ref<Eigen::VectorXd> v_mm_s) {
+  stage_state_ = &state;
   Gather(state);
   x_mm = x_;
   v_mm_s = v_;
@@ -508,7 +505,7 @@ CgResult SoftSystem::SolveNewtonSystem(const Model& model, double gamma_s,
   AssembleStiffness(gamma, gamma, product_ == SystemProduct::kAssembled);
   BuildPointTerms(model, xz_mm, nullptr, nullptr, false);
   BuildPointTerms(model, xz_mm, contacts, springs, false);
-  BuildPreconditioner(gamma);
+  BuildPreconditioner(gamma, const_cast<State*>(stage_state_));
   std::vector<double> ones(bodies_.size(), 1.0);
   ApplyElementStiffness(bx, ones, &tmp_);
   ApplyPointTerms(1.0, bx, &tmp_);

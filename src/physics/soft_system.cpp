@@ -37,9 +37,9 @@ void SoftSystem::Build(const Model& model, const State& state) {
   product_ = model.solver.product;
   preconditioner_ = model.solver.preconditioner;
   refactor_iterations_ = model.solver.refactor_iterations;
-  pattern_dirty_ = true;
-  rest_dirty_ = true;
-  anchor_dirty_ = true;
+  refactor_lag_ = std::max(1, model.solver.refactor_lag_steps);
+  active_ready_ = false;
+  pending_units_ = 0;
   Layout(model, state);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const SoftBodyState& sb = state.soft_bodies[b];
@@ -129,8 +129,6 @@ void SoftSystem::LayoutSlots() {
   free_.assign(ns, 0);
   precond_.assign(ns, Mat3::Zero());
   node_rot_.assign(ns, Mat3::Identity());
-  anchor_rot_.assign(ns, Mat3::Identity());
-  compact_.assign(ns, -1);
   kmat_.Reset(slots_);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     for (std::size_t i = 0; i < bodies_[b].slot.size(); ++i) {
@@ -210,7 +208,6 @@ void SoftSystem::ResetStepVectors() {
   b_.setZero(3 * slots_);
   dv_.setZero(3 * slots_);
   tmp_.setZero(3 * slots_);
-  xa_.setZero(3 * slots_);
 }
 
 void SoftSystem::RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb) {
@@ -226,7 +223,6 @@ void SoftSystem::RefreshRest(int body, std::int32_t tet, const SoftBodyState& sb
     }
   }
   bd.rest[static_cast<std::size_t>(tet)] = rest;
-  rest_dirty_ = true;
 }
 
 void SoftSystem::AddElement(int body, std::int32_t tet, const SoftBodyState& sb) {
@@ -249,7 +245,6 @@ void SoftSystem::AddElement(int body, std::int32_t tet, const SoftBodyState& sb)
     auto it = std::lower_bound(inc.begin(), inc.end(), ref);
     if (it == inc.end() || !(*it == ref)) inc.insert(it, ref);
   }
-  pattern_dirty_ = true;
   for (int a = 0; a < 4; ++a) RecomputeSlot(s[static_cast<std::size_t>(a)]);
 }
 
@@ -268,8 +263,6 @@ void SoftSystem::RemoveElement(int body, std::int32_t tet) {
     if (it != inc.end() && *it == ref) inc.erase(it);
   }
   bd.rest[static_cast<std::size_t>(tet)] = TetRest{};
-  rest_dirty_ = true;
-  pattern_dirty_ = true;
   for (int a = 0; a < 4; ++a) RecomputeSlot(s[static_cast<std::size_t>(a)]);
 }
 
@@ -302,6 +295,7 @@ bool SoftSystem::NeedsRebuild(int body, std::int32_t new_nodes) const {
 
 void SoftSystem::RemoveTets(int body, std::span<const std::int32_t> tets, State* state) {
   SoftBodyState& sb = state->soft_bodies[static_cast<std::size_t>(body)];
+  KeepFactorSource(&sb);
   for (std::int32_t t : tets) {
     if (t < 0 || static_cast<std::size_t>(t) >= sb.tets.size()) continue;
     if (!sb.tet_alive[static_cast<std::size_t>(t)]) continue;
@@ -317,17 +311,14 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
   SoftBodyState& sb = state->soft_bodies[static_cast<std::size_t>(body)];
   const auto n0 = static_cast<std::int32_t>(sb.x.cols());
   const auto k = static_cast<std::int32_t>(parents.size());
-  const bool has_anchor = sb.x_factor.cols() == n0 && n0 > 0;
+  KeepFactorSource(&sb);  // the factored mesh keeps its nodes: new ones are not in it
   Points x(3, n0 + k), v(3, n0 + k), xr(3, n0 + k), dw(3, n0 + k);
-  Points xf(3, has_anchor ? n0 + k : 0);
-  if (has_anchor) xf.leftCols(n0) = sb.x_factor;
   x.leftCols(n0) = sb.x;
   v.leftCols(n0) = sb.v;
   xr.leftCols(n0) = sb.x_rest;
   dw.leftCols(n0) = sb.dv_warm;
   for (std::int32_t i = 0; i < k; ++i) {
     Vec3 px = Vec3::Zero(), pv = Vec3::Zero(), pr = Vec3::Zero(), pd = Vec3::Zero();
-    Vec3 pf = Vec3::Zero();
     for (int a = 0; a < 4; ++a) {
       const std::int32_t p = parents[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)];
       const double w = weights[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)];
@@ -336,9 +327,7 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
       pv += w * sb.v.col(p);
       pr += w * sb.x_rest.col(p);
       pd += w * sb.dv_warm.col(p);
-      if (has_anchor) pf += w * sb.x_factor.col(p);
     }
-    if (has_anchor) xf.col(n0 + i) = pf;
     x.col(n0 + i) = px;
     v.col(n0 + i) = pv;
     xr.col(n0 + i) = pr;
@@ -348,7 +337,6 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
   sb.v = std::move(v);
   sb.x_rest = std::move(xr);
   sb.dv_warm = std::move(dw);
-  if (has_anchor) sb.x_factor = std::move(xf);
   if (NeedsRebuild(body, k)) {
     Build(model, *state);  // out of slot capacity: re-layout (same results, new room)
     return n0;
@@ -361,13 +349,13 @@ std::int32_t SoftSystem::AppendNodes(const Model& model, int body,
     slot_node_[static_cast<std::size_t>(slot)] = NodeRef{body, n0 + i};
     RecomputeSlot(slot);
   }
-  pattern_dirty_ = true;
   return n0;
 }
 
 std::int32_t SoftSystem::AppendTets(int body, std::span<const mesh::Tet> tets, State* state) {
   SoftBodyState& sb = state->soft_bodies[static_cast<std::size_t>(body)];
   Body& bd = bodies_[static_cast<std::size_t>(body)];
+  KeepFactorSource(&sb);
   const auto first = static_cast<std::int32_t>(sb.tets.size());
   const auto n = static_cast<std::int32_t>(sb.x.cols());
   for (const mesh::Tet& t : tets) {
@@ -413,6 +401,7 @@ std::int32_t SoftSystem::SplitTet(const Model& model, int body, std::int32_t tet
 void SoftSystem::SetRestPositions(int body, std::span<const std::int32_t> nodes,
                                   const Points& rest_mm, State* state) {
   Body& bd = bodies_[static_cast<std::size_t>(body)];
+  for (SoftBodyState& sb : state->soft_bodies) KeepFactorSource(&sb);  // joined copies too
   std::vector<ElemRef> touched;
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const std::int32_t node = nodes[i];

@@ -113,49 +113,47 @@ void AddInternalTerms(const std::vector<ThreadModel>& threads, const std::vector
   }
 }
 
+// One fixed term per thread point of `points` (PointContacts or PointSprings; other targets are
+// skipped): of `kind`, with the point's stiffness and its members `vec` and `scalar`;
+// (*term_of)[c] is point c's term (-1 for none). `what` names the type in the range error.
+template <class P>
+void AddPointTerms(const std::vector<ThreadRest>& rests, const std::vector<P>& points,
+                   Term::Kind kind, const char* what, Vec3 P::*vec, double P::*scalar,
+                   std::vector<int>* term_of, System* sys) {
+  System& s = *sys;
+  const int nt = static_cast<int>(rests.size());
+  for (std::size_t c = 0; c < points.size(); ++c) {
+    const P& pt = points[c];
+    if (pt.target != PointContact::Target::kThread) continue;
+    if (pt.index < 0 || pt.index >= nt)
+      throw std::invalid_argument(std::string(what) + " thread index out of range");
+    Term term;
+    term.kind = kind;
+    if (!thread_internal::PointTerm(s, pt.index, pt.nodes, pt.weights,
+                                    static_cast<int>(rests[pt.index].mass_kg.size()), &term))
+      continue;
+    term.k = pt.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
+    term.vec = pt.*vec;
+    term.scalar = pt.*scalar;
+    (*term_of)[c] = static_cast<int>(s.fixed_terms.size());
+    s.fixed_terms.push_back(term);
+  }
+}
+
 // ---- External contacts and springs (targets kThread only), remembered per contact / spring
 // for the force outputs.
 void AddExternalTerms(const std::vector<ThreadRest>& rests, const ContactSet* contacts,
                       const SpringSet* springs, System* sys) {
   System& s = *sys;
-  const int nt = static_cast<int>(rests.size());
   s.contact_term.assign(contacts ? contacts->size() : 0, -1);
   s.spring_term.assign(springs ? springs->size() : 0, -1);
   if (contacts) {
-    for (std::size_t c = 0; c < contacts->size(); ++c) {
-      const PointContact& pc = (*contacts)[c];
-      if (pc.target != PointContact::Target::kThread) continue;
-      if (pc.index < 0 || pc.index >= nt)
-        throw std::invalid_argument("PointContact thread index out of range");
-      Term term;
-      term.kind = Term::Kind::kPlane;
-      if (!thread_internal::PointTerm(s, pc.index, pc.nodes, pc.weights,
-                                      static_cast<int>(rests[pc.index].mass_kg.size()), &term))
-        continue;
-      term.k = pc.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
-      term.vec = pc.normal;
-      term.scalar = pc.offset_mm;
-      s.contact_term[c] = static_cast<int>(s.fixed_terms.size());
-      s.fixed_terms.push_back(term);
-    }
+    AddPointTerms(rests, *contacts, Term::Kind::kPlane, "PointContact", &PointContact::normal,
+                  &PointContact::offset_mm, &s.contact_term, sys);
   }
   if (springs) {
-    for (std::size_t c = 0; c < springs->size(); ++c) {
-      const PointSpring& ps = (*springs)[c];
-      if (ps.target != PointContact::Target::kThread) continue;
-      if (ps.index < 0 || ps.index >= nt)
-        throw std::invalid_argument("PointSpring thread index out of range");
-      Term term;
-      term.kind = Term::Kind::kSpring;
-      if (!thread_internal::PointTerm(s, ps.index, ps.nodes, ps.weights,
-                                      static_cast<int>(rests[ps.index].mass_kg.size()), &term))
-        continue;
-      term.k = ps.stiffness_n_per_mm * units::kNewtonPerMmToInternal;
-      term.vec = ps.anchor_mm;
-      term.scalar = ps.rest_length_mm;
-      s.spring_term[c] = static_cast<int>(s.fixed_terms.size());
-      s.fixed_terms.push_back(term);
-    }
+    AddPointTerms(rests, *springs, Term::Kind::kSpring, "PointSpring", &PointSpring::anchor_mm,
+                  &PointSpring::rest_length_mm, &s.spring_term, sys);
   }
 }
 

@@ -139,6 +139,47 @@ TEST(BlockLdlt, SolvesSparseBlockSystemsAndRejectsIndefinite) {
   EXPECT_FALSE(ldlt.Factor(diag, blocks));
 }
 
+// The factorisation spread over parts (FactorSlice) gives the bits of the whole (Factor), for
+// any part count, and refuses parts out of order.
+TEST(BlockLdlt, FactorInPartsGivesTheBitsOfTheWhole) {
+  std::mt19937_64 rng(5);
+  const std::int32_t n = 60;
+  std::vector<std::array<std::int32_t, 2>> pairs;
+  for (std::int32_t i = 0; i < n; ++i) {
+    if (i % 10 != 9) pairs.push_back({i, i + 1});
+    if (i + 10 < n) pairs.push_back({i, i + 10});
+    if (i % 7 == 0 && i + 23 < n) pairs.push_back({i, i + 23});
+  }
+  std::vector<Mat3> diag(static_cast<std::size_t>(n)), blocks(pairs.size());
+  for (Mat3& b : blocks) b = RandomMatrix(rng, 1.0);
+  for (Mat3& d : diag) {
+    const Mat3 m = RandomMatrix(rng, 1.0);
+    d = m * m.transpose() + 14.0 * Mat3::Identity();
+  }
+  Eigen::VectorXd b(3 * n);
+  for (Eigen::Index k = 0; k < b.size(); ++k) b[k] = std::cos(0.3 * k);
+  BlockLdlt whole;
+  whole.Analyze(n, pairs);
+  ASSERT_TRUE(whole.Factor(diag, blocks));
+  Eigen::VectorXd x_whole = b;
+  whole.Solve(x_whole.data());
+  for (int parts : {1, 2, 3, 6, 1000}) {
+    BlockLdlt sliced;
+    sliced.Analyze(n, pairs);
+    sliced.BeginFactor(diag, blocks);
+    EXPECT_FALSE(sliced.ok());
+    EXPECT_FALSE(sliced.FactorSlice(1, parts == 1 ? 2 : parts)) << "out of order";
+    for (int j = 0; j < parts; ++j) {
+      EXPECT_FALSE(sliced.ok()) << parts << " " << j;
+      ASSERT_TRUE(sliced.FactorSlice(j, parts)) << parts << " " << j;
+    }
+    ASSERT_TRUE(sliced.ok()) << parts;
+    Eigen::VectorXd x = b;
+    sliced.Solve(x.data());
+    EXPECT_TRUE((x.array() == x_whole.array()).all()) << parts;
+  }
+}
+
 struct Tet4 {
   std::array<Vec3, 4> x;
 };

@@ -424,25 +424,118 @@ TEST(SoftSystem, ThreadCountDoesNotChangeBits) {
   EXPECT_NE(s1.soft_bodies[0].x, s1.soft_bodies[0].x_rest);
 }
 
-// The factor anchor lives in State: a system built afresh from a copied State (a restore)
-// continues bit for bit, also when the anchor moves (refactor after every step with > 1 CG
-// iteration) and the run carries a lagged factor.
+bool Same(const Points& a, const Points& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
+}
+
+// One step as the sim layer takes it (SoftSystem::Step leaves the step index to its caller).
+SoftStepStats StepOnce(SoftSystem* sys, const Model& model, State* s) {
+  const SoftStepStats st = sys->Step(model, nullptr, nullptr, s);
+  ++s->step;
+  return st;
+}
+
+// The factor's source lives in State: a system built afresh from a copied State (a restore)
+// continues bit for bit, also while a requested factor is being prepared (the copy is taken
+// inside the lag window) and when the anchor keeps moving (a request after every step with more
+// than 1 CG iteration).
 TEST(SoftSystem, RestoreWithMovingFactorAnchorIsBitIdentical) {
   Model model = CoarseBeam(0.1, 0.01);
   model.solver.refactor_iterations = 1;
+  model.solver.refactor_lag_steps = 4;
   State s = MakeInitialState(model);
   SoftSystem a;
   a.Build(model, s);
-  int moved = 0;
-  for (int k = 0; k < 8; ++k) moved += a.Step(model, nullptr, nullptr, &s).anchor_moved ? 1 : 0;
-  ASSERT_GT(moved, 0);
+  int moved = 0, switched = 0;
+  for (int k = 0; k < 40 && !(switched > 0 && s.factor_switch_step > s.step + 1); ++k) {
+    const SoftStepStats st = StepOnce(&a, model, &s);
+    moved += st.anchor_moved ? 1 : 0;
+    switched += st.refactored && k > 0 ? 1 : 0;
+  }
+  ASSERT_GT(moved, 1);
+  ASSERT_GT(switched, 0);
   ASSERT_GT(s.soft_bodies[0].x_factor.cols(), 0);
+  ASSERT_GT(s.factor_switch_step, s.step + 1);  // the copy is taken inside a lag window
   State restored = s;
   SoftSystem b;
   b.Build(model, restored);
-  for (int k = 0; k < 8; ++k) {
-    a.Step(model, nullptr, nullptr, &s);
-    b.Step(model, nullptr, nullptr, &restored);
+  for (int k = 0; k < 10; ++k) {
+    StepOnce(&a, model, &s);
+    StepOnce(&b, model, &restored);
+  }
+  EXPECT_TRUE(BitwiseEqual(s, restored));
+}
+
+// Deferred refactorisation: the step that needs more than refactor_iterations CG iterations
+// (step R) requests a factor of its end positions; steps R + 1 ... R + lag - 1 prepare it in
+// parts and still use the old one; step R + lag uses it. The same holds whatever the part
+// timing, and CG meets its tolerance at every step.
+TEST(SoftSystem, RequestedFactorIsUsedExactlyLagStepsLater) {
+  Model model = CoarseBeam(0.1, 0.01);
+  model.solver.refactor_iterations = 1;
+  for (int lag : {1, 2, 5}) {
+    model.solver.refactor_lag_steps = lag;
+    State s = MakeInitialState(model);
+    SoftSystem sys;
+    sys.Build(model, s);
+    StepOnce(&sys, model, &s);  // builds the first factor at once
+    std::int64_t request = -1;
+    Points requested;
+    for (int k = 0; k < 30 && request < 0; ++k) {
+      const std::int64_t at = s.step;
+      if (StepOnce(&sys, model, &s).anchor_moved) {
+        request = at;
+        requested = s.soft_bodies[0].x;
+      }
+    }
+    ASSERT_GE(request, 0) << lag;
+    EXPECT_EQ(s.factor_switch_step, request + lag) << lag;
+    EXPECT_TRUE(Same(s.soft_bodies[0].x_factor_next, requested)) << lag;
+    for (int j = 1; j < lag; ++j) {
+      const SoftStepStats st = StepOnce(&sys, model, &s);
+      EXPECT_FALSE(st.refactored) << lag << " " << j;
+      EXPECT_TRUE(st.factor_work) << lag << " " << j;
+      EXPECT_LE(st.cg_relative_residual, model.solver.cg_tolerance);
+      EXPECT_FALSE(Same(s.soft_bodies[0].x_factor, requested)) << lag << " " << j;
+    }
+    ASSERT_EQ(s.step, request + lag);
+    const SoftStepStats st = StepOnce(&sys, model, &s);
+    EXPECT_TRUE(st.refactored) << lag;
+    EXPECT_LE(st.cg_relative_residual, model.solver.cg_tolerance);
+    EXPECT_TRUE(Same(s.soft_bodies[0].x_factor, requested)) << lag;
+    EXPECT_EQ(s.factor_switch_step == -1 || s.factor_switch_step > request + lag, true) << lag;
+  }
+}
+
+// Topology edits while a factor is in use: the factor keeps its mesh (recorded in State before
+// the edit) and removed nodes drop out of it. A system rebuilt from the State (a restore) gives
+// the same bits, and CG meets its tolerance. (Split nodes make the next step factor its mesh at
+// once: the ThreadCount/Topology tests cover that path.)
+TEST(SoftSystem, FactorOfAnOlderMeshRestoresBitForBit) {
+  Model model = CoarseBeam(0.1, 0.01);
+  model.solver.refactor_lag_steps = 3;
+  State s = MakeInitialState(model);
+  SoftSystem a;
+  a.Build(model, s);
+  for (int k = 0; k < 3; ++k) StepOnce(&a, model, &s);
+  std::vector<std::int32_t> cut;
+  const SoftBodyState& b = s.soft_bodies[0];
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (std::int32_t n : b.tets[t]) c += 0.25 * b.x_rest.col(n);
+    if (std::abs(c.x() - 60) < 3 && c.z() > 5) cut.push_back(static_cast<std::int32_t>(t));
+  }
+  a.RemoveTets(0, cut, &s);
+  // The factor keeps the mesh before the cut (recorded in State by the edit).
+  ASSERT_EQ(s.soft_bodies[0].factor_alive.size(), b.tets.size());
+  EXPECT_NE(s.soft_bodies[0].factor_alive, s.soft_bodies[0].tet_alive);
+  State restored = s;
+  SoftSystem fresh;
+  fresh.Build(model, restored);
+  for (int k = 0; k < 12; ++k) {
+    const SoftStepStats st = StepOnce(&a, model, &s);
+    StepOnce(&fresh, model, &restored);
+    EXPECT_LE(st.cg_relative_residual, model.solver.cg_tolerance) << k;
   }
   EXPECT_TRUE(BitwiseEqual(s, restored));
 }

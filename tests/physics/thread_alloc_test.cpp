@@ -45,24 +45,9 @@ TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
   InitThreadWorkspace(models, &ws);
   ContactSet floor;
   for (int t = 0; t < 2; ++t) {
-    for (int i = 0; i < states[t].x.cols(); ++i) {
-      PointContact c;
-      c.target = PointContact::Target::kThread;
-      c.index = t;
-      c.nodes = {i, -1, -1, -1};
-      c.weights = {1, 0, 0, 0};
-      c.normal = Vec3::UnitZ();
-      c.offset_mm = 0;
-      c.stiffness_n_per_mm = 10;
-      floor.push_back(c);
-    }
+    for (int i = 0; i < states[t].x.cols(); ++i) floor.push_back(testing::FloorContact(t, i, 10));
   }
-  SpringSet springs(1);
-  springs[0].target = PointContact::Target::kThread;
-  springs[0].index = 1;
-  springs[0].nodes = {30, -1, -1, -1};
-  springs[0].weights = {1, 0, 0, 0};
-  springs[0].stiffness_n_per_mm = 2;
+  SpringSet springs{testing::NodeSpring(1, 30, 2)};
   const Vec3 gravity(0, 0, -units::kStandardGravityMmS2);
   long allocations = 0;
   int pairs = 0, iterations = 0;

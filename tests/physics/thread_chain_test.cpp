@@ -12,6 +12,8 @@
 namespace arthrosim::physics {
 namespace {
 
+using testing::FloorContact;
+using testing::NodeSpring;
 using testing::PolylineThread;
 using testing::RestState;
 
@@ -77,12 +79,7 @@ TEST(ThreadChain, OneNewtonPullStretchesAsEA) {
   std::vector<ThreadState> states{RestState(m)};
   ThreadWorkspace ws;
   InitThreadWorkspace(models, &ws);
-  SpringSet springs(1);
-  springs[0].target = PointContact::Target::kThread;
-  springs[0].index = 0;
-  springs[0].nodes = {50, -1, -1, -1};
-  springs[0].weights = {1, 0, 0, 0};
-  springs[0].stiffness_n_per_mm = 1.0;
+  SpringSet springs{NodeSpring(0, 50, 1.0)};
   springs[0].anchor_mm = Vec3(51.0, 0, 0);  // ~1 N pull
   for (int step = 0; step < 100; ++step)
     StepThreads(models, 0.02, Vec3::Zero(), nullptr, &springs, &states, &ws);
@@ -139,17 +136,7 @@ TEST(ThreadChain, PointContactHoldsThreadAbovePlane) {
   InitThreadWorkspace(models, &ws);
   for (int step = 0; step < 100; ++step) {
     ContactSet contacts;
-    for (int i = 0; i < 21; ++i) {
-      PointContact c;
-      c.target = PointContact::Target::kThread;
-      c.index = 0;
-      c.nodes = {i, -1, -1, -1};
-      c.weights = {1, 0, 0, 0};
-      c.normal = Vec3::UnitZ();
-      c.offset_mm = 0;
-      c.stiffness_n_per_mm = 1;
-      contacts.push_back(c);
-    }
+    for (int i = 0; i < 21; ++i) contacts.push_back(FloorContact(0, i, 1));
     StepThreads(models, 0.02, kGravity, &contacts, nullptr, &states, &ws);
     if (step == 99) {
       double total = 0;

@@ -13,6 +13,7 @@
 namespace arthrosim::physics {
 namespace {
 
+using testing::NodeSpring;
 using testing::PassThrough;
 using testing::PolylineThread;
 using testing::RestState;
@@ -153,12 +154,7 @@ TEST(ThreadCollision, FastPullThroughNeverTunnels) {
   // so the continuous check and the fail-safe must stop it.
   CrossingRun run = CrossedThreads();
   run.states[1].x.row(2).array() -= 4.0;  // start 1 mm above a
-  SpringSet springs(1);
-  springs[0].target = PointContact::Target::kThread;
-  springs[0].index = 1;
-  springs[0].nodes = {15, -1, -1, -1};
-  springs[0].weights = {1, 0, 0, 0};
-  springs[0].stiffness_n_per_mm = 10;
+  SpringSet springs{NodeSpring(1, 15, 10)};
   for (int step = 0; step < 60; ++step) {
     springs[0].anchor_mm = Vec3(0, 0, 1.0 - 20.0 * std::min(step + 1, 15));
     run.Step(&springs);

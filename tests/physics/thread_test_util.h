@@ -5,6 +5,7 @@
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/physics/contact.h"
 
 namespace arthrosim::physics::testing {
 
@@ -31,6 +32,31 @@ inline ThreadState RestState(const ThreadModel& m) {
   s.v = Points::Zero(3, m.initial.nodes.cols());
   s.node_alive.assign(m.initial.nodes.cols(), 1);
   return s;
+}
+
+/// A point contact or spring (`P`) on node `node` of thread `thread` alone.
+template <class P>
+P OnThreadNode(int thread, int node, double stiffness_n_per_mm) {
+  P p;
+  p.target = PointContact::Target::kThread;
+  p.index = thread;
+  p.nodes = {node, -1, -1, -1};
+  p.weights = {1, 0, 0, 0};
+  p.stiffness_n_per_mm = stiffness_n_per_mm;
+  return p;
+}
+
+/// A point contact holding node `node` of thread `thread` above the plane z = 0.
+inline PointContact FloorContact(int thread, int node, double stiffness_n_per_mm) {
+  PointContact c = OnThreadNode<PointContact>(thread, node, stiffness_n_per_mm);
+  c.normal = Vec3::UnitZ();
+  c.offset_mm = 0;
+  return c;
+}
+
+/// A spring on node `node` of thread `thread`; the caller sets its anchor.
+inline PointSpring NodeSpring(int thread, int node, double stiffness_n_per_mm) {
+  return OnThreadNode<PointSpring>(thread, node, stiffness_n_per_mm);
 }
 
 // det[a1 - a0, b0 - a0, b1 - a0]

@@ -30,6 +30,18 @@ class BlockLdlt {
   /// matrix is not positive definite in floating point.
   bool Factor(std::span<const Mat3> diag, std::span<const Mat3> pair_blocks);
 
+  /// The same numeric factorisation in parts, for spreading it over several calls: BeginFactor
+  /// loads the values (ok() becomes false), then FactorSlice(j, slices) for j = 0, 1, ...,
+  /// slices - 1 in that order factors the supernodes of part j (parts of about equal
+  /// multiply-add count, a pure function of the pattern). ok() is true after the last part if
+  /// the matrix is positive definite. The result is bit for bit that of Factor, whatever the
+  /// number of parts. FactorSlice returns false when a part found the matrix not positive
+  /// definite (or is called out of order).
+  void BeginFactor(std::span<const Mat3> diag, std::span<const Mat3> pair_blocks);
+  bool FactorSlice(int slice, int slices);
+  /// Parts done since BeginFactor.
+  int slices_done() const { return next_slice_; }
+
   /// x <- A^-1 x in place (3n entries). Valid after a successful Factor.
   void Solve(double* x) const;
 
@@ -39,12 +51,17 @@ class BlockLdlt {
   std::int64_t factor_nonzeros() const;
 
  private:
-  void Symbolic();       // L's pattern, supernodes, entry map (after the ordering)
-  bool NumericFactor();  // values of L and D from a's values
+  void Symbolic();        // L's pattern, supernodes, entry map (after the ordering)
+  void SupernodeCosts();  // multiply-adds per supernode (for the parts of FactorSlice)
+  std::int64_t SliceBegin(int slice, int slices) const;       // first supernode of a part
+  void NumericBegin();                                        // panels from a's values
+  bool NumericRange(std::size_t s_begin, std::size_t s_end);  // values of L and D, in order
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::int32_t n_ = 0;
   bool ok_ = false;
+  bool failed_ = false;
+  int next_slice_ = 0;
 };
 
 }  // namespace arthrosim::physics

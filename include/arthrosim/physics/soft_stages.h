@@ -21,16 +21,17 @@ namespace arthrosim::physics {
 struct SoftStepStats {
   double rotations_ms = 0;  ///< polar rotations + elastic forces
   double assembly_ms = 0;   ///< matrix, preconditioner (incl. any refactorisation), contacts, rhs
-  double factor_ms = 0;     ///< part of assembly_ms spent (re)analysing/factoring, 0 if reused
+  double factor_ms = 0;     ///< part of assembly_ms spent on factor work (a whole factor or a part)
   double solve_ms = 0;      ///< CG
   double update_ms = 0;     ///< integration and write-back to State
   double total_ms = 0;
   int cg_iterations = 0;
-  double cg_relative_residual = 0;   ///< final |b - A dv| / max(|b|, h |W|), W the weight
-  bool refactored = false;           ///< the preconditioner was factored in this step
-  bool anchor_moved = false;         ///< this step set x_factor (refactor at the next step)
-  std::int32_t active_nodes = 0;     ///< unknown nodes (free, with an element)
-  std::int32_t active_tets = 0;      ///< alive, non-degenerate elements
+  double cg_relative_residual = 0;  ///< final |b - A dv| / max(|b|, h |W|), W the weight
+  bool refactored = false;          ///< a new factor came into use this step (built or switched in)
+  bool factor_work = false;       ///< this step did factor work (a whole factor or a prepared part)
+  bool anchor_moved = false;      ///< this step requested a new factor (State::factor_switch_step)
+  std::int32_t active_nodes = 0;  ///< unknown nodes (free, with an element)
+  std::int32_t active_tets = 0;   ///< alive, non-degenerate elements
   std::int32_t active_contacts = 0;  ///< penetrating contacts + springs entered in the system
   /// Extra solves for contacts that were apart at the start of the step and crossed within it
   /// (cg_iterations counts all solves).

@@ -186,7 +186,10 @@ class SoftSystem final : public SoftStages {
   void AssembleStiffness(double scale_h, double h, bool assembled);
   void BuildPointTerms(const Model& model, const Eigen::VectorXd& x, ContactSet* contacts,
                        SpringSet* springs, bool add_forces);
-  void BuildPreconditioner(double h);
+  // The preconditioner of this step: the warped anchored factor (switching to a prepared one
+  // at State::factor_switch_step, preparing one part of it otherwise), block Jacobi for free
+  // slots the factor does not cover or when there is none.
+  void BuildPreconditioner(double h, State* state);
   // After a solve (dv_): contacts apart at the start of the step (force_n == 0) whose point
   // ends the step behind its plane get their term, force and right-hand side (b_) share, and
   // force_n = -1. True if any did.
@@ -194,8 +197,42 @@ class SoftSystem final : public SoftStages {
   // Re-solves per step for contacts crossed within it (see Step).
   static constexpr int kCrossRounds = 2;
   void BuildBlockJacobi(double h);
-  void AnalyzeFactor();
-  void FactorRestSystem(double h);
+  // Anchored factors (soft_factor.cpp). A factor is a pure function of its source (per body:
+  // the factored mesh's rest positions and alive tets, the anchor positions), h and the slot
+  // layout.
+  struct FactorBuild {
+    BlockLdlt ldlt;
+    std::vector<std::int32_t> compact;               // per slot: factor node, -1 if not in it
+    std::vector<std::int32_t> nodes;                 // factor node -> slot
+    std::vector<std::array<std::int32_t, 2>> pairs;  // factor node pairs (i < j), sorted
+    std::vector<std::int32_t> row_start;             // pairs of node i: [row_start[i], [i + 1])
+    std::vector<Mat3> anchor_rot;                    // per slot node rotation at the anchor
+    std::vector<Mat3> diag, offdiag;                 // values per factor node / per pair
+    double h = -1;
+    bool analysed = false;  // ldlt holds the pattern of nodes and pairs
+  };
+  struct FactorSource {
+    const Points* rest = nullptr;
+    const std::vector<std::uint8_t>* alive = nullptr;
+    const Points* anchor = nullptr;
+    const std::vector<mesh::Tet>* tets = nullptr;  // the state's tets (its prefix is the mesh)
+  };
+  // Views of State for StartFactor (in scratch_sources_: valid until the next call).
+  const std::vector<FactorSource>& ActiveSources(const State& state);
+  const std::vector<FactorSource>& PendingSources(const State& state);
+  void StartFactor(const std::vector<FactorSource>& src, double h, FactorBuild* f);
+  void FactorPattern(const std::vector<FactorSource>& src, FactorBuild* f);
+  void FactorValues(const std::vector<FactorSource>& src, double h, FactorBuild* f);
+  // Numeric parts of a prepared factor (the part count is a function of the lag only).
+  int FactorParts() const;
+  void AdvancePending(const State& state, double h, bool all);
+  void SwitchFactor(double h, State* state);
+  // Before an edit of tet_alive / x_rest: the active factor's source keeps the old values.
+  void KeepFactorSource(SoftBodyState* sb) const;
+  void RequestFactor(State* state);
+  std::int32_t CountUncovered() const;            // free slots the active factor does not cover
+  void ReplaceFactorNow(double h, State* state);  // factor this step's mesh at once
+  void WarpFactor();
   void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const;
   void ApplyStiffness(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;  // Kh x (scaled)
   // Element-by-element sum_b scales[b] K_b x (free rows only).
@@ -229,20 +266,25 @@ class SoftSystem final : public SoftStages {
   std::vector<PointTerm> terms_;
   SystemProduct product_ = SystemProduct::kAssembled;
   Preconditioner preconditioner_ = Preconditioner::kRestCholesky;
-  // Anchored factor (kRestCholesky).
-  BlockLdlt factor_;
-  std::vector<std::int32_t> compact_;  // per slot: node index in the factor, -1 if not free
-  Eigen::VectorXd xa_;                 // anchor positions per slot (from State::x_factor)
-  std::vector<Mat3> anchor_rot_;       // per slot node rotation at the anchor
-  std::vector<Mat3> fdiag_, fpair_;    // factor values per compact node / per kmat_ pair
-  mutable Eigen::VectorXd pw_;         // compact work vector of the solve
-  double factor_h_ = -1;
-  bool pattern_dirty_ = true;  // topology changed: reorder and re-analyse
-  bool rest_dirty_ = true;     // rest data changed: refactor
-  bool anchor_dirty_ = true;   // anchor positions changed: refactor
-  bool refactored_ = false;
+  // Anchored factors (kRestCholesky): the one in use and the one being prepared.
+  FactorBuild active_, pending_;
+  bool active_ready_ = false;           // active_ built from State's source (false after Build)
+  int pending_units_ = 0;               // work units of the requested factor done (start + parts)
+  std::int32_t uncovered_ = 0;          // free slots the active factor does not cover (Jacobi)
+  mutable Eigen::VectorXd pw_;          // factor work vector of the solve
+  const State* stage_state_ = nullptr;  // the state of the external integrator's step
+  // Scratch of FactorPattern / FactorValues (kept: a refactorisation allocates nothing unless
+  // the pattern changed).
+  std::vector<std::uint8_t> scratch_has_;
+  std::vector<std::array<std::int32_t, 2>> scratch_edges_, scratch_pairs_;
+  std::vector<std::int32_t> scratch_nodes_;
+  std::vector<double> scratch_mass_, scratch_alpha_mass_;
+  std::vector<FactorSource> scratch_sources_;
+  bool refactored_ = false;   // this step built or switched to a new factor
+  bool factor_work_ = false;  // this step did factor work (a part or a whole factor)
   double factor_ms_ = 0;
   int refactor_iterations_ = 10;  // from SolverOptions::refactor_iterations
+  int refactor_lag_ = 1;          // from SolverOptions::refactor_lag_steps
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
