@@ -170,4 +170,19 @@ PointContact ThreadPoint(int thread, std::int32_t a, std::int32_t b, double u) {
   return c;
 }
 
+PointContact SoftTrianglePoint(int body, const mesh::Tri& tri, const std::array<double, 3>& w,
+                               const Vec3& normal, double offset_mm, double stiffness_n_per_mm,
+                               int obstacle_id) {
+  PointContact c;
+  c.target = PointContact::Target::kSoftBody;
+  c.index = body;
+  c.nodes = {tri[0], tri[1], tri[2], -1};
+  c.weights = {w[0], w[1], w[2], 0};
+  c.normal = normal;
+  c.offset_mm = offset_mm;
+  c.stiffness_n_per_mm = stiffness_n_per_mm;
+  c.obstacle_id = obstacle_id;
+  return c;
+}
+
 }  // namespace arthrosim::collision::internal

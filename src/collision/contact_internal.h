@@ -167,6 +167,13 @@ struct ContactBuilder {
 // Contact on a thread segment point with parameter u (0 = node a, 1 = node b).
 PointContact ThreadPoint(int thread, std::int32_t a, std::int32_t b, double u);
 
+// Contact on the point of soft body `body`'s surface triangle `tri` at barycentric weights `w`,
+// held on the side `normal` points to of the plane normal . x = offset_mm, against obstacle
+// `obstacle_id`.
+PointContact SoftTrianglePoint(int body, const mesh::Tri& tri, const std::array<double, 3>& w,
+                               const Vec3& normal, double offset_mm, double stiffness_n_per_mm,
+                               int obstacle_id);
+
 // ---- pair tests by kind (one task each in Detect) -------------------------------------------
 
 // Thread segment boxes of one thread for the tool tests (made once per step).

@@ -29,16 +29,65 @@ void ThreadSurfaceContact(ContactBuilder* cb, int thread, PointContact c, const 
       cb->SoftFixed(obstacle_index, g[2])) {
     return;
   }
-  PointContact t;
-  t.target = PointContact::Target::kSoftBody;
-  t.index = obstacle_index;
-  t.nodes = {g[0], g[1], g[2], -1};
-  t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
-  t.normal = -normal;
-  t.offset_mm = -normal.dot(n.pair.pa) + rt + P.contact_distance_mm;
-  t.stiffness_n_per_mm = stiffness;
-  t.obstacle_id = thread;
-  cb->Add(t, Kind::kThread);
+  cb->Add(SoftTrianglePoint(obstacle_index, g, n.pair.wb, -normal,
+                            -normal.dot(n.pair.pa) + rt + P.contact_distance_mm, stiffness, thread),
+          Kind::kThread);
+}
+
+// Whether the nearest surface point n is within contact range of a thread of radius rt: up to
+// the alarm distance outside, the maximum depth inside.
+bool InContact(const Nearest& n, double rt, const CollisionParams& P) {
+  const double sd = n.Signed();
+  return sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
+}
+
+// Next to a piercing (scratch->pierced) the thread enters the tissue on purpose: blocks the
+// segments beside it and their nodes (scratch->blocked_edge, blocked_node) from contacts.
+void BlockAroundPiercings(const ThreadModel& tm, ContactTaskScratch* scratch) {
+  const std::size_t ne = tm.initial.edges.size();
+  for (std::size_t i = 0; i < ne; ++i) {
+    if (!scratch->pierced[i]) continue;
+    for (std::size_t j = i > 0 ? i - 1 : 0; j <= i + 1 && j < ne; ++j) scratch->blocked_edge[j] = 1;
+  }
+  for (std::size_t i = 0; i < ne; ++i) {
+    if (scratch->blocked_edge[i]) {
+      scratch->blocked_node[tm.initial.edges[i][0]] =
+          scratch->blocked_node[tm.initial.edges[i][1]] = 1;
+    }
+  }
+}
+
+// Distance from p to triangle `tri` of the surface points `pos`.
+double TriangleDistance(const Vec3& p, const std::vector<Vec3>& pos, const mesh::Tri& tri) {
+  return std::sqrt(
+      Closest(PointSimplex(p), TriangleSimplex(pos[tri[0]], pos[tri[1]], pos[tri[2]])).dist2);
+}
+
+// Segment interiors (a thread over an edge of the surface): a contact at the nearest point of a
+// segment (scratch seg_nearest) that is not blocked, where the segment dips below its end nodes'
+// distances (a real interior minimum).
+void SegmentInteriorContacts(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_index,
+                             const Surface& s, const std::vector<Vec3>& pos, double rt,
+                             double stiffness) {
+  const ThreadModel& tm = cb->model.threads[thread];
+  const Points& x = cb->state.threads[thread].x;
+  const std::vector<Nearest>& seg = cb->scratch.seg_nearest;
+  for (std::size_t i = 0; i < tm.initial.edges.size(); ++i) {
+    const Nearest& n = seg[i];
+    const double u = n.pair.wa[1];
+    if (!n.found || cb->scratch.blocked_edge[i] || u <= 1e-9 || u >= 1 - 1e-9 ||
+        !InContact(n, rt, cb->params)) {
+      continue;
+    }
+    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
+    if (cb->ThreadFixed(thread, a) && cb->ThreadFixed(thread, b)) continue;
+    const mesh::Tri& tri = s.local_tris[n.tri];
+    const double da = TriangleDistance(x.col(a), pos, tri);
+    const double db = TriangleDistance(x.col(b), pos, tri);
+    if (n.dist >= std::min(da, db) - 1e-9) continue;
+    ThreadSurfaceContact(cb, thread, ThreadPoint(thread, a, b, u), n, obstacle, obstacle_index, s,
+                         rt, stiffness);
+  }
 }
 
 // `query(i, box, out)` lists the triangles whose box overlaps `box` (ascending) for query slot i
@@ -58,10 +107,6 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
   if (bvh.empty()) return;
   const Box bounds = bvh.Bounds();
   const double reach = std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
-  auto in_contact = [&](const Nearest& n) {
-    const double sd = n.Signed();
-    return sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
-  };
   const std::size_t ne = tm.initial.edges.size();
   const Eigen::Index nn = x.cols();
   ContactTaskScratch& scratch = cb->scratch;
@@ -124,15 +169,7 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
     if (node_seg[b] < 0) node_seg[b] = static_cast<std::int32_t>(i);
     if (seg[i].pair.dist2 == 0) pierced[i] = 1;
   }
-  // Next to a piercing the thread enters the tissue on purpose: no contacts there.
-  for (std::size_t i = 0; i < ne; ++i) {
-    if (!pierced[i]) continue;
-    for (std::size_t j = i > 0 ? i - 1 : 0; j <= i + 1 && j < ne; ++j) blocked_edge[j] = 1;
-  }
-  for (std::size_t i = 0; i < ne; ++i) {
-    if (blocked_edge[i])
-      blocked_node[tm.initial.edges[i][0]] = blocked_node[tm.initial.edges[i][1]] = 1;
-  }
+  BlockAroundPiercings(tm, &scratch);
   // Nodes.
   for (Eigen::Index v = 0; v < nn; ++v) {
     const std::int32_t node = static_cast<std::int32_t>(v);
@@ -151,32 +188,11 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
     }
     const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, &scratch, (*hint)[v]);
     if (n.found) (*hint)[v] = n.tri;
-    if (!n.found || !in_contact(n)) continue;
+    if (!n.found || !InContact(n, rt, P)) continue;
     ThreadSurfaceContact(cb, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
                          obstacle_index, s, rt, stiffness);
   }
-  // Segment interiors (a thread over an edge of the surface).
-  for (std::size_t i = 0; i < ne; ++i) {
-    const Nearest& n = seg[i];
-    const double u = n.pair.wa[1];
-    if (!n.found || blocked_edge[i] || u <= 1e-9 || u >= 1 - 1e-9 || !in_contact(n)) continue;
-    // Only where the segment dips below its end nodes' distances (a real interior minimum).
-    const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
-    if (cb->ThreadFixed(thread, a) && cb->ThreadFixed(thread, b)) continue;
-    const double da =
-        std::sqrt(Closest(PointSimplex(x.col(a)),
-                          TriangleSimplex(pos[s.local_tris[n.tri][0]], pos[s.local_tris[n.tri][1]],
-                                          pos[s.local_tris[n.tri][2]]))
-                      .dist2);
-    const double db =
-        std::sqrt(Closest(PointSimplex(x.col(b)),
-                          TriangleSimplex(pos[s.local_tris[n.tri][0]], pos[s.local_tris[n.tri][1]],
-                                          pos[s.local_tris[n.tri][2]]))
-                      .dist2);
-    if (n.dist >= std::min(da, db) - 1e-9) continue;
-    ThreadSurfaceContact(cb, thread, ThreadPoint(thread, a, b, u), n, obstacle, obstacle_index, s,
-                         rt, stiffness);
-  }
+  SegmentInteriorContacts(cb, thread, obstacle, obstacle_index, s, pos, rt, stiffness);
 }
 
 }  // namespace

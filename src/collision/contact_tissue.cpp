@@ -118,6 +118,45 @@ void TissueBone(ContactBuilder* cb, int body, CollisionWorld::SoftEntry& s, int 
   }
 }
 
+// ---- soft points searched out to a distance --------------------------------------------------
+
+// The nearest point of soft surface `s` to p, searched out to `wide` (leaving out the triangles
+// `skip` marks, if given); *lower: a lower bound of the distance from p to the surface (the
+// searched box, or the nearest triangle).
+Nearest NearestSoftPoint(ContactBuilder* cb, const CollisionWorld::SoftEntry& s, const Box& bounds,
+                         const Vec3& p, double wide, const std::vector<std::uint8_t>* skip,
+                         double* lower) {
+  *lower = wide;
+  Nearest n;
+  if (NearBoxes(Box{p, p}, wide, bounds)) {
+    std::vector<std::int32_t>& cand = cb->scratch.cand;
+    cand.clear();
+    s.bvh.Query(Box{p.array() - wide, p.array() + wide}, &cand);
+    if (skip != nullptr) {
+      cand.erase(
+          std::remove_if(cand.begin(), cand.end(), [&](std::int32_t t) { return (*skip)[t] != 0; }),
+          cand.end());
+    }
+    n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, s.bvh, s.positions, s.surface.local_tris,
+                         &cb->scratch);
+    if (n.found) *lower = std::min(*lower, n.dist);
+  } else {
+    *lower = std::max(wide, std::sqrt(BoxDist2(Box{p, p}, bounds)));
+  }
+  return n;
+}
+
+// When lower >= reach (|signed distance| >= reach: no contact either side of the surface),
+// keeps point i at p as out of reach by the margin left, and returns true.
+bool KeepFarBound(FarBounds* far, std::size_t i, const Vec3& p, double lower, double reach,
+                  double drift_mm) {
+  if (lower < reach) return false;
+  far->at[i] = p;
+  far->margin[i] = lower - reach - kCertSlack;
+  far->drift0[i] = drift_mm;
+  return true;
+}
+
 // ---- soft tissue against soft tissue (different bodies) ------------------------------------
 
 // Surface vertices of body a near the surface of body b: contact on both sides, as for a thread
@@ -143,35 +182,14 @@ void TissueTissue(ContactBuilder* cb, int a, CollisionWorld::SoftEntry& ea, int 
   far.Reset(ea.version, eb.version, ea.positions.size());
   // Searched out to `wide`: a vertex found farther than reach keeps the difference as a bound.
   const double wide = reach + kFarSlack;
-  std::vector<std::int32_t>& cand = cb->scratch.cand;
   for (std::size_t vi = 0; vi < ea.positions.size(); ++vi) {
     if (skip_v != nullptr && (*skip_v)[vi]) continue;
     const Vec3& p = ea.positions[vi];
     if (far.Holds(vi, p, eb.drift_mm)) continue;
     far.margin[vi] = -1;
-    // Lower bound of the distance to b's surface: the searched box, or the nearest triangle.
-    double lower = wide;
-    Nearest n;
-    if (NearBoxes(Box{p, p}, wide, bounds)) {
-      cand.clear();
-      eb.bvh.Query(Box{p.array() - wide, p.array() + wide}, &cand);
-      if (skip_t != nullptr) {
-        cand.erase(std::remove_if(cand.begin(), cand.end(),
-                                  [&](std::int32_t t) { return (*skip_t)[t] != 0; }),
-                   cand.end());
-      }
-      n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, eb.bvh, eb.positions,
-                           eb.surface.local_tris, &cb->scratch);
-      if (n.found) lower = std::min(lower, n.dist);
-    } else {
-      lower = std::max(wide, std::sqrt(BoxDist2(Box{p, p}, bounds)));
-    }
-    if (lower >= reach) {  // |signed distance| >= reach: no contact either side of the surface
-      far.at[vi] = p;
-      far.margin[vi] = lower - reach - kCertSlack;
-      far.drift0[vi] = eb.drift_mm;
-      continue;
-    }
+    double lower = 0;
+    const Nearest n = NearestSoftPoint(cb, eb, bounds, p, wide, skip_t, &lower);
+    if (KeepFarBound(&far, vi, p, lower, reach, eb.drift_mm)) continue;
     const double sd = n.Signed();
     if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
     const Vec3 normal = sd > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
@@ -198,16 +216,9 @@ void TissueTissue(ContactBuilder* cb, int a, CollisionWorld::SoftEntry& ea, int 
       cb->Add(c, Kind::kSoftBody);
     }
     if (b_moves) {
-      PointContact t;
-      t.target = PointContact::Target::kSoftBody;
-      t.index = b;
-      t.nodes = {g[0], g[1], g[2], -1};
-      t.weights = {n.pair.wb[0], n.pair.wb[1], n.pair.wb[2], 0};
-      t.normal = -normal;
-      t.offset_mm = a_moves ? -mid + 0.5 * skin : -ha + skin;
-      t.stiffness_n_per_mm = P.tissue_tissue_stiffness_n_per_mm;
-      t.obstacle_id = a;
-      cb->Add(t, Kind::kSoftBody);
+      cb->Add(SoftTrianglePoint(b, g, n.pair.wb, -normal, a_moves ? -mid + 0.5 * skin : -ha + skin,
+                                P.tissue_tissue_stiffness_n_per_mm, a),
+              Kind::kSoftBody);
     }
   }
 }
@@ -226,28 +237,13 @@ void BoneTipTissue(ContactBuilder* cb, int body, const CollisionWorld::SoftEntry
   const Box bounds = s.bvh.Bounds();
   FarBounds& far = g.far_soft[body];
   far.Reset(g.version, s.version, g.salient.size());
-  std::vector<std::int32_t>& cand = cb->scratch.cand;
   for (std::size_t i = 0; i < g.salient.size(); ++i) {
     const Vec3& p = g.positions[g.salient[i]];
     if (far.Holds(i, p, s.drift_mm)) continue;
     far.margin[i] = -1;
-    double lower = wide;
-    Nearest n;
-    if (NearBoxes(Box{p, p}, wide, bounds)) {
-      cand.clear();
-      s.bvh.Query(Box{p.array() - wide, p.array() + wide}, &cand);
-      n = NearestOnSurface(PointSimplex(p), Box{p, p}, cand, s.bvh, s.positions,
-                           s.surface.local_tris, &cb->scratch);
-      if (n.found) lower = std::min(lower, n.dist);
-    } else {
-      lower = std::max(wide, std::sqrt(BoxDist2(Box{p, p}, bounds)));
-    }
-    if (lower >= reach) {
-      far.at[i] = p;
-      far.margin[i] = lower - reach - kCertSlack;
-      far.drift0[i] = s.drift_mm;
-      continue;
-    }
+    double lower = 0;
+    const Nearest n = NearestSoftPoint(cb, s, bounds, p, wide, nullptr, &lower);
+    if (KeepFarBound(&far, i, p, lower, reach, s.drift_mm)) continue;
     const double sd = n.Signed();  // of the bone corner from the soft surface
     if (sd >= 0 ? sd >= P.alarm_distance_mm : -sd >= P.max_depth_mm) continue;
     const auto& w = n.pair.wb;
@@ -257,16 +253,9 @@ void BoneTipTissue(ContactBuilder* cb, int body, const CollisionWorld::SoftEntry
       continue;
     // n: out of the tissue toward the corner; the tissue point must stay behind the corner.
     const Vec3 normal = sd > kMinDirection ? Vec3((n.pair.pa - n.pair.pb) / n.dist) : n.pseudo;
-    PointContact c;
-    c.target = PointContact::Target::kSoftBody;
-    c.index = body;
-    c.nodes = {t[0], t[1], t[2], -1};
-    c.weights = {w[0], w[1], w[2], 0};
-    c.normal = -normal;
-    c.offset_mm = -normal.dot(p) + P.contact_distance_mm;
-    c.stiffness_n_per_mm = P.bone_stiffness_n_per_mm;
-    c.obstacle_id = bone;
-    cb->Add(c, Kind::kBone);
+    cb->Add(SoftTrianglePoint(body, t, w, -normal, -normal.dot(p) + P.contact_distance_mm,
+                              P.bone_stiffness_n_per_mm, bone),
+            Kind::kBone);
   }
 }
 

@@ -130,26 +130,8 @@ void TetTree::Refit(const Points& x, const std::vector<mesh::Tet>& tets) {
 template <class Keep, class Leaf>
 void TetTree::Traverse(const Keep& keep, const Leaf& leaf) const {
   if (nodes_.empty()) return;
-  constexpr int kFixed = 128;
-  std::int32_t fixed[kFixed];
-  std::vector<std::int32_t> heap;
-  std::int32_t* stack = fixed;
-  if (depth_ + 2 > kFixed) {
-    heap.resize(static_cast<std::size_t>(depth_) + 2);
-    stack = heap.data();
-  }
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& n = nodes_[static_cast<std::size_t>(stack[--top])];
-    if (!keep(n.box)) continue;
-    if (n.tet >= 0) {
-      leaf(n.tet);
-    } else {
-      stack[top++] = n.right;
-      stack[top++] = n.left;
-    }
-  }
+  WalkBoxTree(
+      nodes_, depth_, [](const Node& n) { return n.tet; }, keep, leaf);
 }
 
 void TetTree::QueryTriangle(const Points& x, const std::vector<mesh::Tet>& tets,

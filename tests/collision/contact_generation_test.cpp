@@ -9,6 +9,7 @@
 #include "arthrosim/collision/bench_scene.h"
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/core/units.h"
+#include "test_instruments.h"
 
 namespace arthrosim::collision {
 namespace {
@@ -139,6 +140,24 @@ void ExpectSameContacts(const CollisionOutput& a, const CollisionOutput& b) {
   for (int s = 0; s < kToolSlots; ++s) EXPECT_EQ(a.bone_force_n[s], b.bone_force_n[s]);
 }
 
+// Detect with the tools in place, through the cached `world`; the contacts must equal those a
+// fresh world (what a restored run would build) finds.
+void DetectAsAFreshWorldWould(const Model& model, const State& state, const CollisionParams& params,
+                              CollisionWorld* world, CollisionOutput* out) {
+  Detect(model, state, state.tools, params, world, out);
+  CollisionWorld fresh;
+  CollisionOutput again;
+  Detect(model, state, state.tools, params, &fresh, &again);
+  ExpectSameContacts(*out, again);
+}
+
+// The node positions of every soft body.
+std::vector<Points> Positions(const State& state) {
+  std::vector<Points> x;
+  for (const SoftBodyState& b : state.soft_bodies) x.push_back(b.x);
+  return x;
+}
+
 void PlaceTools(State* state, double x) {
   for (int slot = 0; slot < kToolSlots; ++slot) {
     state->tools[slot].instrument = slot;
@@ -234,8 +253,7 @@ TEST(ContactGeneration, ContactsDoNotDependOnThreadCount) {
 TEST(ContactGeneration, TissueBoneOutOfReachBoundsNeverChangeContacts) {
   const Model model = MakeBenchmarkModel();
   State state = MakeInitialState(model);
-  std::vector<Points> rest;
-  for (const SoftBodyState& b : state.soft_bodies) rest.push_back(b.x);
+  const std::vector<Points> rest = Positions(state);
   CollisionParams params;
   CollisionWorld world;
   CollisionOutput out;
@@ -247,11 +265,7 @@ TEST(ContactGeneration, TissueBoneOutOfReachBoundsNeverChangeContacts) {
                                        0.1 * std::sin(0.3 * rest[b](0, i) + 0.2 * step);
       }
     }
-    Detect(model, state, state.tools, params, &world, &out);
-    CollisionWorld fresh;
-    CollisionOutput again;
-    Detect(model, state, state.tools, params, &fresh, &again);
-    ExpectSameContacts(out, again);
+    DetectAsAFreshWorldWould(model, state, params, &world, &out);
     for (const auto& e : world.soft) {
       for (const NearBoneCache& c : e.near_bone) {
         for (double m : c.far_margin) bounded += m > 0;
@@ -283,8 +297,7 @@ TEST(ContactGeneration, SoftSoftAndBoneTipBoundsNeverChangeContacts) {
   spike.tris = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}, {1, 4, 3}, {1, 3, 2}};
   model.bones.push_back(BoneModel{"spur", "", spike, 1});
   State state = MakeInitialState(model);
-  std::vector<Points> rest;
-  for (const SoftBodyState& b : state.soft_bodies) rest.push_back(b.x);
+  const std::vector<Points> rest = Positions(state);
   CollisionParams params;
   CollisionWorld world;
   CollisionOutput out;
@@ -298,11 +311,7 @@ TEST(ContactGeneration, SoftSoftAndBoneTipBoundsNeverChangeContacts) {
         state.soft_bodies[b].x(0, i) = rest[b](0, i) + (b == 1 ? 0.03 * step : 0.0);
       }
     }
-    Detect(model, state, state.tools, params, &world, &out);
-    CollisionWorld fresh;
-    CollisionOutput again;
-    Detect(model, state, state.tools, params, &fresh, &again);
-    ExpectSameContacts(out, again);
+    DetectAsAFreshWorldWould(model, state, params, &world, &out);
     for (const auto& e : world.soft) {
       for (const FarBounds& f : e.far_soft) {
         for (double m : f.margin) bounded += m > 0;
@@ -323,11 +332,7 @@ TEST(ContactGeneration, SoftSoftAndBoneTipBoundsNeverChangeContacts) {
 TEST(ContactGeneration, ToolBoneReactionIsStiffnessTimesDepth) {
   Model model;
   model.bones.push_back(BoxBone(Vec3(-10, -10, -10), Vec3(10, 10, 0)));
-  InstrumentModel burr;
-  burr.name = "burr";
-  burr.kind = InstrumentKind::kBurr;
-  burr.tip_radius_mm = 2.5;
-  model.instruments.push_back(burr);
+  model.instruments.push_back(testing::TipInstrument("burr", InstrumentKind::kBurr, 2.5));
   State state = MakeInitialState(model);
   state.tools[0].instrument = 0;
   state.tools[0].pose.orientation = kDown;
@@ -420,11 +425,8 @@ TEST(ContactGeneration, EventsStartAndEndWithRegionAndToolForcesSum) {
   model.soft_bodies.push_back(Block("tendon", Vec3(-5, -5, 0), Vec3(5, 5, 3), 5, 5, 3));
   model.regions.push_back(Region{"elsewhere", "tendon", {}, Vec3(4, 4, 0), Vec3(5, 5, 3)});
   model.regions.push_back(Region{"footprint", "tendon", {}, Vec3(-5, -5, 0), Vec3(5, 5, 3.5)});
-  InstrumentModel probe;
-  probe.name = "probe";
-  probe.kind = InstrumentKind::kElectrocautery;
-  probe.tip_radius_mm = 1.0;
-  model.instruments.push_back(probe);
+  model.instruments.push_back(
+      testing::TipInstrument("probe", InstrumentKind::kElectrocautery, 1.0));
   State state = MakeInitialState(model);
   state.tools[0].instrument = 0;
   state.tools[0].pose.orientation = kDown;

@@ -14,6 +14,7 @@
 #include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/step.h"
 #include "signed_distance.h"
+#include "test_instruments.h"
 
 namespace arthrosim::collision {
 namespace {
@@ -65,11 +66,8 @@ TEST(SolverCoupling, FlatPunchIndentationMatchesEAdOverH) {
   model.options.gravity_mm_s2 = Vec3::Zero();  // the elastic reaction alone balances the punch
   model.soft_bodies.push_back(Block(Vec3(-half, -half, 0), Vec3(half, half, h), 5, 5, 5,
                                     Soft(young_pa, 0.0), [](const Vec3& p) { return p.z() == 0; }));
-  InstrumentModel punch;
-  punch.name = "punch";
-  punch.kind = InstrumentKind::kBurr;
-  punch.tip_radius_mm = 5e4;  // 50 m: a flat face over the 10 mm block
-  model.instruments.push_back(punch);
+  // a 50 m tip radius: a flat face over the 10 mm block
+  model.instruments.push_back(testing::TipInstrument("punch", InstrumentKind::kBurr, 5e4));
   State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);
@@ -298,10 +296,7 @@ TEST(SolverCoupling, GraspedThreadDraggedAcrossAnotherNeverPassesThroughIt) {
   grasp.tag = "hold";  // a held end, not the grasper operation's "grasp" (released on jaw open)
   grasp.a.kind = ConstraintEnd::Kind::kTool;
   grasp.a.index = 0;
-  grasp.b.kind = ConstraintEnd::Kind::kThread;
-  grasp.b.index = 1;
-  grasp.b.nodes = {0, -1, -1, -1};
-  grasp.b.weights = {1, 0, 0, 0};
+  grasp.b = physics::ThreadPointEnd(1, 0);  // node 0 of thread 1
   grasp.stiffness_n_per_mm = 0.5;
   physics::AddConstraint(&state, grasp);
   const double radii = 0.5 * (post.diameter_mm + model.threads[1].diameter_mm);

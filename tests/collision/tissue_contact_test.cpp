@@ -15,6 +15,7 @@
 #include "arthrosim/physics/bone_surface.h"
 #include "arthrosim/sim/step.h"
 #include "signed_distance.h"
+#include "test_instruments.h"
 
 namespace arthrosim::collision {
 namespace {
@@ -80,11 +81,7 @@ PressResult PressBlocks(bool tissue_contacts) {
   const double gap0 = 0.05;
   model.soft_bodies.push_back(Block("upper", Vec3(-3, -3, 5 + gap0), Vec3(3, 3, 10 + gap0), 3, 3, 2,
                                     [](const Vec3&) { return false; }));
-  InstrumentModel punch;
-  punch.name = "punch";
-  punch.kind = InstrumentKind::kBurr;
-  punch.tip_radius_mm = 5e4;
-  model.instruments.push_back(punch);
+  model.instruments.push_back(testing::TipInstrument("punch", InstrumentKind::kBurr, 5e4));
   State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);

@@ -98,31 +98,44 @@ class TriangleBvh {
   int depth_ = 0;                      ///< longest root-to-leaf path (edges)
 };
 
-template <class Keep>
-void TriangleBvh::QueryIf(const Keep& keep, std::vector<std::int32_t>* out) const {
-  if (empty()) return;
-  const std::size_t first = out->size();
-  // Depth-first, left child first; the stack never holds more than depth + 1 entries.
+/// Walks a binary box tree stored from its root nodes[0] (non-empty) depth-first, left child
+/// first: a node whose box `keep` rejects is skipped with its subtree, and leaf(item) is called
+/// for every kept leaf (item_of(node) >= 0 marks a leaf and is its item). `depth` is the longest
+/// root-to-leaf path (edges); the stack, on the C++ stack unless the tree is very deep, never
+/// holds more than depth + 2 entries.
+template <class Node, class ItemOf, class Keep, class Leaf>
+void WalkBoxTree(const std::vector<Node>& nodes, int depth, const ItemOf& item_of, const Keep& keep,
+                 const Leaf& leaf) {
   constexpr int kFixed = 128;
   std::int32_t fixed[kFixed];
   std::vector<std::int32_t> heap;
   std::int32_t* stack = fixed;
-  if (depth_ + 1 > kFixed) {
-    heap.resize(static_cast<std::size_t>(depth_) + 1);
+  if (depth + 2 > kFixed) {
+    heap.resize(static_cast<std::size_t>(depth) + 2);
     stack = heap.data();
   }
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
+    const Node& node = nodes[static_cast<std::size_t>(stack[--top])];
     if (!keep(node.box)) continue;
-    if (node.tri >= 0) {
-      out->push_back(node.tri);
+    const std::int32_t item = item_of(node);
+    if (item >= 0) {
+      leaf(item);
     } else {
       stack[top++] = node.right;
       stack[top++] = node.left;
     }
   }
+}
+
+template <class Keep>
+void TriangleBvh::QueryIf(const Keep& keep, std::vector<std::int32_t>* out) const {
+  if (empty()) return;
+  const std::size_t first = out->size();
+  WalkBoxTree(
+      nodes_, depth_, [](const Node& node) { return node.tri; }, keep,
+      [&](std::int32_t tri) { out->push_back(tri); });
   std::sort(out->begin() + static_cast<std::ptrdiff_t>(first), out->end());
 }
 
