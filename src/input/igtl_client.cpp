@@ -16,17 +16,7 @@
 namespace arthrosim::input {
 namespace {
 
-const char* TransformName(Device d) {
-  switch (d) {
-    case Device::kSlot0:
-      return "Slot0ToReference";
-    case Device::kSlot1:
-      return "Slot1ToReference";
-    case Device::kScope:
-      return "ScopeToReference";
-  }
-  return "";
-}
+const char* TransformName(Device d) { return NameIn(igtl_wire::kTransformNames, d, ""); }
 
 class Connection {
  public:
@@ -51,14 +41,18 @@ class Connection {
     ++r->messages_sent;
   }
 
-  /// Reads whatever arrives within timeout_ms and collects SENSOR forces.
-  void Receive(int timeout_ms, StreamResult* r) {
+  /// Reads whatever arrives within timeout_ms and collects SENSOR forces and STRING notices.
+  /// Returns false once the server has closed the connection.
+  bool Receive(int timeout_ms, StreamResult* r) {
     pollfd p{fd_, POLLIN | POLLOUT, 0};
     p.events = POLLIN;
-    if (::poll(&p, 1, timeout_ms) <= 0) return;
+    if (::poll(&p, 1, timeout_ms) <= 0) return true;
     std::uint8_t buf[8192];
+    bool open = true;
     for (;;) {
       const ssize_t n = ::recv(fd_, buf, sizeof(buf), 0);
+      if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR))
+        open = false;
       if (n <= 0) break;
       parser_.Append(buf, static_cast<std::size_t>(n));
     }
@@ -69,11 +63,18 @@ class Connection {
       if (res == igtl_wire::StreamParser::Result::kNeedMore ||
           res == igtl_wire::StreamParser::Result::kFatal)
         break;
-      if (res != igtl_wire::StreamParser::Result::kMessage || m.type != "SENSOR") continue;
+      if (res != igtl_wire::StreamParser::Result::kMessage) continue;
+      if (m.type == "STRING") {
+        const std::optional<std::string> text = igtl_wire::DecodeString(m, &why);
+        if (text) r->notices.push_back({m.timestamp_s, m.device, *text});
+        continue;
+      }
+      if (m.type != "SENSOR") continue;
       const int slot = m.device == "Slot0Force" ? 0 : m.device == "Slot1Force" ? 1 : -1;
       const std::optional<Vec3> f = igtl_wire::DecodeSensor(m, &why);
       if (slot >= 0 && f) r->forces.push_back({m.timestamp_s, slot, *f});
     }
+    return open;
   }
 
  private:
@@ -122,7 +123,8 @@ StreamResult StreamSession(const SessionTable& table, const StreamClientOptions&
   const auto end = std::chrono::steady_clock::now() +
                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                        std::chrono::duration<double>(o.linger_s));
-  while (std::chrono::steady_clock::now() < end) c.Receive(10, &r);
+  while (std::chrono::steady_clock::now() < end && c.Receive(10, &r)) {
+  }
   return r;
 }
 

@@ -35,10 +35,8 @@ bool ParseNumber(const std::string& s, double* v) {
 
 /// Device name of a TRANSFORM -> device; -1 if unknown.
 int TransformDevice(const std::string& name) {
-  if (name == "Slot0ToReference") return 0;
-  if (name == "Slot1ToReference") return 1;
-  if (name == "ScopeToReference") return 2;
-  return -1;
+  const std::optional<Device> d = ValueIn(igtl_wire::kTransformNames, name);
+  return d ? static_cast<int>(*d) : -1;
 }
 
 }  // namespace
@@ -281,20 +279,35 @@ struct IgtlServer::Impl {
     }
   }
 
-  void Queue(const std::vector<std::uint8_t>& bytes) {  // mu held
+  void Queue(const std::vector<std::uint8_t>& bytes, std::uint64_t* sent) {  // mu held
     for (auto& c : clients) {
       if (c->out.size() - c->out_pos + bytes.size() > kMaxQueuedBytes) {
         if (!c->overflow_logged)
-          opt.log(fmt::format("client {} is not reading: force messages dropped", c->id));
+          opt.log(fmt::format("client {} is not reading: messages to it dropped", c->id));
         c->overflow_logged = true;
         continue;
       }
       c->out.insert(c->out.end(), bytes.begin(), bytes.end());
-      ++stats.forces_sent;
+      ++*sent;
+    }
+  }
+
+  // Gives the network thread up to 1 s to send what is queued (the last forces and notices).
+  void Flush() {
+    for (int i = 0; i < 100; ++i) {
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        bool pending = false;
+        for (const auto& c : clients) pending = pending || c->out_pos < c->out.size();
+        if (!pending || stop.load()) return;
+      }
+      Wake();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   }
 
   void Shutdown() {
+    Flush();
     if (stop.exchange(true)) return;
     Wake();
     if (thread.joinable()) thread.join();
@@ -343,9 +356,19 @@ void IgtlServer::Feedback(const FeedbackFrame& feedback) {
     std::lock_guard<std::mutex> lock(s.mu);
     if (s.clients.empty()) return;
     for (int k = 0; k < kToolSlots; ++k) {
-      s.Queue(
-          igtl_wire::EncodeSensor(fmt::format("Slot{}Force", k), feedback.force_n[k], s.last_t));
+      s.Queue(igtl_wire::EncodeSensor(fmt::format("Slot{}Force", k), feedback.force_n[k], s.last_t),
+              &s.stats.forces_sent);
     }
+  }
+  s.Wake();
+}
+
+void IgtlServer::Notify(const std::string& text, double t_s) {
+  Impl& s = *impl_;
+  {
+    std::lock_guard<std::mutex> lock(s.mu);
+    if (s.clients.empty()) return;
+    s.Queue(igtl_wire::EncodeString("Warning", text, t_s), &s.stats.notices_sent);
   }
   s.Wake();
 }

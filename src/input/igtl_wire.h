@@ -7,11 +7,18 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/enum_names.h"
 #include "arthrosim/core/types.h"
+#include "arthrosim/input/input_source.h"
 
 namespace arthrosim::input::igtl_wire {
 
 inline constexpr std::size_t kHeaderBytes = 58;
+
+/// The device name of each device's TRANSFORM messages.
+inline constexpr EnumName<Device> kTransformNames[] = {{Device::kSlot0, "Slot0ToReference"},
+                                                       {Device::kSlot1, "Slot1ToReference"},
+                                                       {Device::kScope, "ScopeToReference"}};
 
 /// A framed message whose header passed the sanity checks (body not yet CRC-checked).
 struct Message {

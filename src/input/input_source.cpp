@@ -2,6 +2,8 @@
 
 #include <cstring>
 
+#include "arthrosim/core/enum_names.h"
+
 namespace arthrosim::input {
 namespace {
 
@@ -17,25 +19,16 @@ bool SameBits(const Pose& a, const Pose& b) {
   return true;
 }
 
+constexpr EnumName<Device> kDeviceNames[] = {
+    {Device::kSlot0, "slot0"}, {Device::kSlot1, "slot1"}, {Device::kScope, "scope"}};
+
 }  // namespace
 
-const char* DeviceName(Device device) {
-  switch (device) {
-    case Device::kSlot0:
-      return "slot0";
-    case Device::kSlot1:
-      return "slot1";
-    case Device::kScope:
-      return "scope";
-  }
-  return "?";
-}
+const char* DeviceName(Device device) { return NameIn(kDeviceNames, device, "?"); }
 
 std::optional<Device> ParseDevice(const std::string& name) {
-  if (name == "slot0") return Device::kSlot0;
-  if (name == "slot1") return Device::kSlot1;
-  if (name == "scope" || name == "camera") return Device::kScope;
-  return std::nullopt;
+  if (name == "camera") return Device::kScope;  // an alias
+  return ValueIn(kDeviceNames, name);
 }
 
 InputFrame IdleFrame(const Model& model) {

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/input_file.h"
 #include "arthrosim/core/units.h"
 #include "script_timeline.h"
 
@@ -145,11 +146,8 @@ ScriptSource::~ScriptSource() = default;
 
 std::unique_ptr<ScriptSource> ScriptSource::Open(const std::string& path, const Model& model,
                                                  const ScriptOptions& options) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot open script file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return std::make_unique<ScriptSource>(ss.str(), path, model, options);
+  return std::make_unique<ScriptSource>(ReadInputFile(path, "", "cannot open script file"), path,
+                                        model, options);
 }
 
 bool ScriptSource::Finished(double t_s) const { return t_s > timeline_->end_time_s; }
@@ -158,12 +156,19 @@ const std::string& ScriptSource::name() const { return timeline_->name; }
 
 void ScriptSource::Feedback(const FeedbackFrame& feedback) { feedback_ = feedback; }
 
+void ScriptSource::SaveControllers(State* state) const { state->script_push = push_; }
+
+void ScriptSource::RestoreControllers(const State& state) {
+  push_ = state.script_push;
+  for (int s = 0; s < kToolSlots; ++s) feedback_.force_n[s] = state.tools[s].force_n;
+}
+
 // The excursion of a force push along the tool axis: integrated while the push runs, then held
 // through non-moving actions and blended out (by its easing) over the next move, depth push or
 // withdraw, so the script's written positions hold again afterwards.
 Vec3 ScriptSource::PushOffset(int slot, double t) {
   const std::vector<HandAction>& v = timeline_->hands[slot];
-  PushState& ps = push_[slot];
+  ScriptPushState& ps = push_[slot];
   const int i = ActionAt(v, t);
   // Carry of the previous force push at time t (zero once a later move has absorbed it).
   Vec3 carry = Vec3::Zero();

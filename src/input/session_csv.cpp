@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/input_file.h"
 #include "arthrosim/input/session.h"
 
 namespace arthrosim::input {
@@ -215,11 +216,7 @@ SessionTable ParseSessionCsv(const std::string& text, const std::string& file,
 }
 
 SessionTable ReadSessionCsv(const std::string& path, const SessionOptions& options) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot open session file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ParseSessionCsv(ss.str(), path, options);
+  return ParseSessionCsv(ReadInputFile(path, "", "cannot open session file"), path, options);
 }
 
 void WriteSessionCsv(const std::string& path, const SessionTable& table) {

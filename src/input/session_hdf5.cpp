@@ -68,11 +68,8 @@ class Reader {
     if (d.get() < 0) Fail(ds, 0, "missing dataset");
     Handle ftype(H5Dget_type(d.get()), H5Tclose);
     if (H5Tget_class(ftype.get()) != H5T_STRING) Fail(ds, 0, "expected a string dataset");
-    Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[1] = {0};
-    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
-    CheckRows(ds, dims[0], n);
+    const Handle space = OneDimSpace(ds, d.get(), n, dims);
     std::vector<std::string> out(dims[0]);
     if (dims[0] == 0) return out;
     if (H5Tis_variable_str(ftype.get()) > 0) {
@@ -104,11 +101,8 @@ class Reader {
   std::vector<std::uint8_t> Bytes(const char* ds, hsize_t* n) const {
     Handle d(H5Dopen2(group_, ds, H5P_DEFAULT), H5Dclose);
     if (d.get() < 0) Fail(ds, 0, "missing dataset");
-    Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[1] = {0};
-    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
-    CheckRows(ds, dims[0], n);
+    OneDimSpace(ds, d.get(), n, dims);
     std::vector<std::int64_t> v(dims[0]);
     if (!v.empty() &&
         H5Dread(d.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
@@ -120,6 +114,16 @@ class Reader {
       out[i] = static_cast<std::uint8_t>(v[i]);
     }
     return out;
+  }
+
+  // The dataspace of dataset `ds` (open as d), which must be 1-D; dims[0]: its length, checked
+  // against *n (CheckRows).
+  Handle OneDimSpace(const char* ds, hid_t d, hsize_t* n, hsize_t dims[1]) const {
+    Handle space(H5Dget_space(d), H5Sclose);
+    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
+    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+    CheckRows(ds, dims[0], n);
+    return space;
   }
 
   [[noreturn]] void Fail(const char* ds, int row, const std::string& msg) const {

@@ -182,15 +182,6 @@ TEST(ForcePush, SameFeedbackGivesBitIdenticalFramesAndRepeatedTimesAreIdempotent
   EXPECT_TRUE(BitwiseEqual(f1, f2));
 }
 
-std::string ErrorOf(const std::string& yaml) {
-  try {
-    ScriptSource s(yaml, "t.yaml", MakeTestModel(), Opt());
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(ForcePush, ValidationNamesFileLineAndField) {
   struct Case {
     std::string push, expect;
@@ -217,10 +208,10 @@ TEST(ForcePush, ValidationNamesFileLineAndField) {
       {"{forse: 1}", "field 'slot0[1].push.forse': unknown key 'forse'; allowed: depth, force"},
   };
   for (const Case& c : cases) {
-    const std::string e = ErrorOf(Script(c.push));
+    const std::string e = testing::ScriptErrorOf(Script(c.push));
     EXPECT_NE(e.find(c.expect), std::string::npos) << "got: " << e << "\nexpected: " << c.expect;
   }
-  EXPECT_EQ(ErrorOf(Script("{force: [[0, 0], [0.5, 1]], max_depth: 4}")), "");
+  EXPECT_EQ(testing::ScriptErrorOf(Script("{force: [[0, 0], [0.5, 1]], max_depth: 4}")), "");
 }
 
 }  // namespace

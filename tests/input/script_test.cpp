@@ -29,15 +29,6 @@ InputFrame At(ScriptSource& s, double t) {
   return f;
 }
 
-std::string ErrorOf(const std::string& yaml) {
-  try {
-    ScriptSource s(yaml, "t.yaml", MakeTestModel(), Opt());
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(Easing, EndpointsValuesAndFlatEnds) {
   for (Easing e : {Easing::kLinear, Easing::kSmoothstep, Easing::kMinimumJerk}) {
     EXPECT_EQ(Ease(e, 0.0), 0.0);
@@ -200,7 +191,7 @@ TEST(ScriptValidation, ErrorsNameFileLineAndField) {
        "field 'slot0[0].pick.duration': expected a number, found 'abc'"},
   };
   for (const Case& c : cases) {
-    const std::string e = ErrorOf(c.yaml);
+    const std::string e = testing::ScriptErrorOf(c.yaml);
     EXPECT_NE(e.find(c.expect), std::string::npos) << "got: " << e << "\nexpected: " << c.expect;
   }
 }

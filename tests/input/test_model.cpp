@@ -4,7 +4,9 @@
 
 #include <filesystem>
 
+#include "arthrosim/core/error.h"
 #include "arthrosim/input/pose_math.h"
+#include "arthrosim/input/script_source.h"
 
 namespace arthrosim::input::testing {
 namespace {
@@ -80,6 +82,17 @@ std::string TempPath(const std::string& name) {
   const std::filesystem::path dir = std::filesystem::path(ARTHROSIM_BINARY_DIR) / "input_test_tmp";
   std::filesystem::create_directories(dir);
   return (dir / name).string();
+}
+
+std::string ScriptErrorOf(const std::string& yaml) {
+  ScriptOptions options;
+  options.dt_s = 0.01;
+  try {
+    ScriptSource s(yaml, "t.yaml", MakeTestModel(), options);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 }  // namespace arthrosim::input::testing

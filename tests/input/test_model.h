@@ -14,6 +14,10 @@ Model MakeTestModel();
 /// trajectories against the real scenario without the io layer.
 Model LoadScenarioSubset(const std::string& path);
 
+/// The message of the InputError that building a ScriptSource from `yaml` throws (file name
+/// "t.yaml", the hand-built model, dt 0.01 s); "" if it builds.
+std::string ScriptErrorOf(const std::string& yaml);
+
 /// A unique temporary file path under the build tree.
 std::string TempPath(const std::string& name);
 

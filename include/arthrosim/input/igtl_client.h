@@ -1,7 +1,8 @@
 #pragma once
 // Streams a recorded session to an IgtlServer over OpenIGTLink, as a device bridge would
 // (TRANSFORM per device + a command STRING per sample), and collects the SENSOR force messages
-// the server sends back. Used by the igtl_stream_client program and the loopback tests.
+// and the STRING notices (live feedback) the server sends back. Used by the igtl_stream_client
+// program and the loopback tests.
 #include <atomic>
 #include <cstdint>
 #include <string>
@@ -14,8 +15,10 @@ namespace arthrosim::input {
 struct StreamClientOptions {
   std::string host = "127.0.0.1";
   int port = 18944;
-  double speed = 1.0;     ///< 1 = the recording's own pace; 0 = as fast as possible
-  double linger_s = 0.2;  ///< keep receiving forces this long after the last sample, s
+  double speed = 1.0;  ///< 1 = the recording's own pace; 0 = as fast as possible
+  /// Keep receiving forces and notices this long after the last sample, s (less if the server
+  /// closes the connection first).
+  double linger_s = 0.2;
   double connect_timeout_s = 5;
   bool send_end = true;  ///< finish with the STRING "session end"
 };
@@ -26,9 +29,17 @@ struct ForceSample {
   Vec3 force_n = Vec3::Zero();
 };
 
+/// A STRING message from the server (live feedback, device "Warning").
+struct NoticeSample {
+  double t_s = 0;  ///< the server's simulated time of the notice (message timestamp)
+  std::string device;
+  std::string text;
+};
+
 struct StreamResult {
   std::uint64_t messages_sent = 0;
   std::vector<ForceSample> forces;
+  std::vector<NoticeSample> notices;  ///< in arrival order
 };
 
 /// The command STRING that carries a row's non-pose data ("slot0 instrument=grasper jaw=0.5

@@ -3,7 +3,8 @@
 // background thread accepts clients on 127.0.0.1:18944 by default, applies TRANSFORM messages
 // (Slot0ToReference, Slot1ToReference, ScopeToReference) and STRING commands
 // ("slot0 instrument=grasper jaw=0.8 buttons=1"), and sends the force of each slot back as a
-// SENSOR message (Slot0Force, Slot1Force, N) after every step. Malformed, oversized and
+// SENSOR message (Slot0Force, Slot1Force, N) after every step, and live feedback to the trainee
+// as STRING messages from the device "Warning". Malformed, oversized and
 // out-of-order messages are logged and dropped; state survives client disconnects.
 #include <array>
 #include <cstdint>
@@ -26,11 +27,12 @@ struct IgtlServerOptions {
 };
 
 struct IgtlServerStats {
-  std::uint64_t applied = 0;      ///< messages that changed the device state
-  std::uint64_t dropped = 0;      ///< malformed, oversized, unknown or out of order
-  std::uint64_t connections = 0;  ///< clients accepted so far
-  std::uint64_t forces_sent = 0;  ///< SENSOR messages queued to clients
-  int clients = 0;                ///< connected now
+  std::uint64_t applied = 0;       ///< messages that changed the device state
+  std::uint64_t dropped = 0;       ///< malformed, oversized, unknown or out of order
+  std::uint64_t connections = 0;   ///< clients accepted so far
+  std::uint64_t forces_sent = 0;   ///< SENSOR messages queued to clients
+  std::uint64_t notices_sent = 0;  ///< STRING messages (Notify) queued to clients
+  int clients = 0;                 ///< connected now
 };
 
 class IgtlServer : public InputSource {
@@ -48,6 +50,8 @@ class IgtlServer : public InputSource {
   void Frame(std::int64_t step, double t_s, InputFrame* out) override;
   /// Queues one SENSOR message per slot (force in N, world frame) to every client.
   void Feedback(const FeedbackFrame& feedback) override;
+  /// Queues a STRING message, device name "Warning", timestamp t_s, to every connected client.
+  void Notify(const std::string& text, double t_s) override;
   /// True after a client sent the STRING "session end" or Stop() was called.
   bool Finished(double t_s) const override;
   /// With realtime pacing: how late (s) the last Frame(t) was called after wall time t.
@@ -58,7 +62,8 @@ class IgtlServer : public InputSource {
   bool WaitUntilApplied(std::uint64_t count, double timeout_s) const;
   /// Blocks until a client is connected (or timeout); returns whether one is.
   bool WaitForClient(double timeout_s) const;
-  /// Stops the network thread and closes all sockets (also done by the destructor).
+  /// Sends what is still queued (up to 1 s), then stops the network thread and closes all
+  /// sockets (also done by the destructor).
   void Stop();
 
  private:

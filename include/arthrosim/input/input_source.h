@@ -11,6 +11,7 @@
 
 #include "arthrosim/core/input_frame.h"
 #include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
 
 namespace arthrosim::input {
 
@@ -32,11 +33,24 @@ class InputSource {
   /// Force on each slot after the step, N, world (sent to a haptic device, used by a script's
   /// force push; ignored by file sources). Call after every Step, before the next Frame.
   virtual void Feedback(const FeedbackFrame& feedback) { (void)feedback; }
+  /// A line for the trainee (live feedback, e.g. a warning) about simulated time t_s (s). A live
+  /// source delivers it to the device side; file sources and scripts ignore it.
+  virtual void Notify(const std::string& text, double t_s) {
+    (void)text;
+    (void)t_s;
+  }
   /// True once the source has nothing more to say at time t_s (s); the run may stop.
   virtual bool Finished(double t_s) const = 0;
   /// How far behind real time (s) the last Frame was asked for: > 0 when the steps take longer
   /// than the simulated time they cover. 0 for sources not paced to the wall clock.
   virtual double RealtimeLagS() const { return 0; }
+  /// Copies what the source's future frames depend on besides the step time and the State
+  /// (a script's force-push controllers) into *state. Call after every Frame, before the Step.
+  /// Default: nothing (pure sources).
+  virtual void SaveControllers(State* state) const { (void)state; }
+  /// Restores the controllers and the last fed-back forces from a State saved by
+  /// SaveControllers (a checkpoint), so the next Frame continues exactly as the saved run did.
+  virtual void RestoreControllers(const State& state) { (void)state; }
 };
 
 /// The frame of a source with nothing inserted: both slots withdrawn, scope at its initial pose.

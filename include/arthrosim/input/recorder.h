@@ -38,8 +38,11 @@ class RecordingSource : public InputSource {
     writer_.Write(t_s, *out);
   }
   void Feedback(const FeedbackFrame& f) override { inner_->Feedback(f); }
+  void Notify(const std::string& text, double t_s) override { inner_->Notify(text, t_s); }
   bool Finished(double t_s) const override { return inner_->Finished(t_s); }
   double RealtimeLagS() const override { return inner_->RealtimeLagS(); }
+  void SaveControllers(State* state) const override { inner_->SaveControllers(state); }
+  void RestoreControllers(const State& state) override { inner_->RestoreControllers(state); }
   InputSource* inner() { return inner_.get(); }
 
  private:

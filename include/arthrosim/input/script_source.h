@@ -55,6 +55,10 @@ class ScriptSource : public InputSource {
   void Feedback(const FeedbackFrame& feedback) override;
   /// True for t_s past the end of the last action.
   bool Finished(double t_s) const override;
+  /// Copies the force-push controllers into state->script_push.
+  void SaveControllers(State* state) const override;
+  /// Takes the controllers from state.script_push and the fed-back forces from state.tools.
+  void RestoreControllers(const State& state) override;
 
   /// End of the last action, s (including hesitation pauses).
   double end_time_s() const;
@@ -62,17 +66,11 @@ class ScriptSource : public InputSource {
   const std::string& name() const;
 
  private:
-  /// Controller state of a slot's most recent force push.
-  struct PushState {
-    int action = -1;      ///< index in the slot's actions; -1 = none yet
-    double depth_mm = 0;  ///< advance along the axis past the push's nominal start, mm
-    double t_prev_s = 0;  ///< time of the last integration, s
-  };
   Vec3 PushOffset(int slot, double t);
 
   std::unique_ptr<Timeline> timeline_;
   FeedbackFrame feedback_;
-  std::array<PushState, kToolSlots> push_{};
+  std::array<ScriptPushState, kToolSlots> push_{};  ///< each slot's most recent force push
 };
 
 }  // namespace arthrosim::input
