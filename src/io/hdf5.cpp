@@ -181,7 +181,6 @@ DatasetSpec GrowingSpec(std::vector<hsize_t> dims, std::size_t element_bytes,
   s.dims = dims;
   s.max_dims = dims;
   s.max_dims[0] = H5S_UNLIMITED;
-  for (int d : also_grow) s.max_dims[static_cast<std::size_t>(d)] = H5S_UNLIMITED;
   s.chunk = dims;
   std::size_t row_bytes = element_bytes;
   for (std::size_t d = 1; d < dims.size(); ++d) {
@@ -197,6 +196,14 @@ DatasetSpec GrowingSpec(std::vector<hsize_t> dims, std::size_t element_bytes,
   }
   constexpr std::size_t kTarget = std::size_t{64} << 10;
   s.chunk[0] = std::clamp<hsize_t>(kTarget / row_bytes, 1, 4096);
+  // The other growing dimensions get a finite maximum (kGrowChunks chunks): with one unlimited
+  // dimension HDF5 indexes chunks with an extensible array; with two, with a v2 B-tree whose
+  // nodes a SWMR writer rewrites elsewhere at every flush, never reusing the old space (~4 kB
+  // per dataset and flush).
+  for (int d : also_grow) {
+    const auto k = static_cast<std::size_t>(d);
+    s.max_dims[k] = std::max(s.chunk[k] * kGrowChunks, s.dims[k]);
+  }
   return s;
 }
 
@@ -245,6 +252,11 @@ void Dataset::Write(int rank, const hsize_t* start, const hsize_t* count, hid_t 
   Handle fspace = SelectSlab(*this, rank, start, count);
   Handle mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
   Check(H5Dwrite(id(), mem_type, mspace.get(), fspace.get(), H5P_DEFAULT, data), "cannot write");
+}
+
+void Dataset::WriteChunk(const hsize_t* offset, const void* data, std::size_t bytes,
+                         std::uint32_t filter_mask) {
+  Check(H5Dwrite_chunk(id(), H5P_DEFAULT, filter_mask, offset, bytes, data), "cannot write chunk");
 }
 
 void Dataset::Read(const std::vector<hsize_t>& start, const std::vector<hsize_t>& count,
@@ -400,6 +412,22 @@ Handle FileAccess() {
   H5Pset_fclose_degree(fapl.get(), H5F_CLOSE_STRONG);
   return fapl;
 }
+
+// A writer's metadata cache of a fixed size (2 MiB): HDF5's adaptive default grows it toward
+// 32 MiB as the chunk indexes of a long run grow, and the writer only appends.
+void FixMetadataCache(hid_t fapl) {
+  H5AC_cache_config_t c;
+  c.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  if (H5Pget_mdc_config(fapl, &c) < 0) return;
+  c.set_initial_size = true;
+  c.initial_size = std::size_t{2} << 20;
+  c.min_size = c.initial_size;
+  c.max_size = c.initial_size;
+  c.incr_mode = H5C_incr__off;
+  c.flash_incr_mode = H5C_flash_incr__off;
+  c.decr_mode = H5C_decr__off;
+  H5Pset_mdc_config(fapl, &c);
+}
 }  // namespace
 
 File File::Create(const std::string& path) {
@@ -407,6 +435,7 @@ File File::Create(const std::string& path) {
   File f;
   f.path_ = path;
   Handle fapl = FileAccess();
+  FixMetadataCache(fapl.get());
   f.handle_ = Ok(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, path,
                  "", "cannot create file");
   f.root_ = Group(Ok(H5Gopen2(f.handle_.get(), "/", H5P_DEFAULT), H5Gclose, path, "/",

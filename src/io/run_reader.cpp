@@ -4,10 +4,12 @@
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
+#include <vector>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/io/hdf5.h"
 #include "arthrosim/io/hdf5_layout.h"
+#include "run_open.h"
 #include "state_datasets.h"
 
 namespace arthrosim::io {
@@ -76,14 +78,21 @@ void ReadValue(const h5::Dataset& ds, const detail::ValueType& type, hsize_t t, 
   }
 }
 
-/// Fills the stored fields of `out` from frame t and empties those the file does not keep.
+/// Fills the stored fields of `out` from frame t and sets those the file does not keep to their
+/// defaults (a default-constructed S's: empty, or e.g. State::factor_switch_step = -1).
 template <class S>
 void ReadFields(const FieldsIn& in, hsize_t t, int slot, hsize_t nodes, hsize_t elements, S* out) {
+  const S fresh{};
+  std::vector<const void*> defaults;  // the kNone fields of `fresh`, in table order
+  VisitFields(fresh, [&](const auto& value, const FieldInfo& info) {
+    if (info.store == FieldStore::kNone) defaults.push_back(&value);
+  });
   std::size_t i = 0;
+  std::size_t none = 0;
   VisitFields(*out, [&](auto& value, const FieldInfo& info) {
     using T = std::decay_t<decltype(value)>;
-    if (info.store == FieldStore::kNone) {
-      if constexpr (std::is_same_v<T, Points>) value.resize(3, 0);
+    if (info.store == FieldStore::kNone) {  // only in checkpoints (run_checkpoint.h)
+      value = *static_cast<const T*>(defaults[none++]);
       return;
     }
     if (info.store != FieldStore::kFrame) return;
@@ -343,13 +352,10 @@ void RunReader::Impl::Load() {
 
 RunReader::RunReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  try {
-    impl_->file = h5::File::OpenReadOnly(path, true);
+  detail::ReadRunFile(path, &impl_->file, [&] {
     impl_->Open();
     impl_->Load();
-  } catch (const h5::Error& e) {
-    throw InputError(path, 0, "", std::string("cannot read run file: ") + e.what());
-  }
+  });
 }
 
 RunReader::~RunReader() = default;
@@ -360,26 +366,14 @@ const RunInfo& RunReader::info() const { return impl_->info; }
 std::int64_t RunReader::frame_count() const { return impl_->frames; }
 
 std::int64_t RunReader::Refresh() {
-  Impl& m = *impl_;
-  for (h5::Dataset* d : m.per_frame) d->Refresh();
-  m.events.Refresh();
-  for (BodyIn& b : m.bodies) {
-    b.elements.Refresh();
-    b.alive_elements.data.Refresh();
-    b.positions.data.Refresh();
-  }
-  for (ThreadIn& t : m.threads) t.positions.data.Refresh();
-  for (BoneIn& b : m.bones) {
-    b.vertices.data.Refresh();
-    b.triangles.data.Refresh();
-  }
-  m.constraints.data.Refresh();
-  m.contacts.data.Refresh();
-  for (Blocks* b : {&m.holes, &m.anchors}) {
-    if (b->data.valid()) b->Refresh();
-  }
-  m.Load();
-  return m.frames;
+  // Reopens the file: after H5Drefresh, HDF5 1.10.8 read a dataset's second chunk as its first
+  // (a chunk lookup kept across the refresh, shared by every handle of the dataset in this
+  // process), so every handle is closed first. If reopening fails the reader is unusable.
+  const std::string path = impl_->path;
+  impl_.reset();
+  RunReader fresh(path);
+  impl_ = std::move(fresh.impl_);
+  return impl_->frames;
 }
 
 double RunReader::time(std::int64_t k) const {

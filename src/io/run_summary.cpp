@@ -3,6 +3,7 @@
 
 #include <map>
 
+#include "arthrosim/io/run_checkpoint.h"
 #include "arthrosim/io/run_reader.h"
 
 namespace arthrosim::io {
@@ -80,6 +81,20 @@ std::string Summarize(const std::string& path) {
     sep = ", ";
   }
   fmt::format_to(out, "{}\n", events.empty() ? "" : ")");
+  const RunCheckpoints cp(path);
+  if (!cp.origin().parent.empty()) {
+    fmt::format_to(out, "continues: {} from step {} ({:.6g} s)\n", cp.origin().parent,
+                   cp.origin().parent_step, cp.origin().parent_time_s);
+  }
+  if (cp.entries().empty()) {
+    fmt::format_to(out, "checkpoints: none\n");
+  } else {
+    std::int64_t bytes = 0;
+    for (const CheckpointEntry& e : cp.entries()) bytes += e.bytes;
+    fmt::format_to(out, "checkpoints: {} (last at step {}, {:.6g} s; {} kB encoded)\n",
+                   cp.entries().size(), cp.entries().back().step, cp.entries().back().time_s,
+                   bytes / 1024);
+  }
   return s;
 }
 

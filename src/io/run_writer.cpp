@@ -52,7 +52,7 @@ void RunWriter::Impl::ForEachSeries(F f) {
   for (ToolOut& o : tools) ForEach(o.fields, f), f(o.active), f(o.slot);
   ForEach(slots, f);
   ForEach(camera, f);
-  f(constraints), f(contacts), f(holes), f(anchors), f(events_end);
+  f(constraints), f(contacts), f(holes), f(anchors);
   for (std::size_t i = 0; i < root_fields.series.size(); ++i) {
     if (i != time_series) f(root_fields.series[i]);
   }
@@ -60,23 +60,25 @@ void RunWriter::Impl::ForEachSeries(F f) {
 
 std::size_t RunWriter::Impl::BufferedBytes() {
   std::size_t bytes = root_fields.series[time_series].buffered_bytes() +
-                      frame_events.size() * sizeof(layout::EventRecord);
+                      events_end.buffered_bytes() + events.buffered_bytes();
   ForEachSeries([&](const auto& series) { bytes += series.buffered_bytes(); });
   return bytes;
 }
 
-void RunWriter::Impl::WriteBlock() {
-  if (!frame_events.empty()) {  // the rows before /events_end refers to them
-    const hsize_t n = frame_events.size();
-    const hsize_t extent = static_cast<hsize_t>(events_written) + n;
-    const hsize_t start = static_cast<hsize_t>(events_written);
-    events.SetExtent(1, &extent);
-    events.Write(1, &start, &n, event_mem.get(), frame_events.data());
-    events_written += static_cast<std::int64_t>(n);
+void RunWriter::Impl::WriteBlock(bool seal) {
+  if (!frame_events.empty()) {
+    events.Append(frame_events.data(), static_cast<std::int64_t>(frame_events.size()));
     frame_events.clear();
   }
-  ForEachSeries([](auto& series) { series.WriteOut(); });
-  root_fields.series[time_series].WriteOut();  // last: a frame counts once /time has it
+  // Per-frame series store their full chunks; block series and events store their rows, then
+  // the offsets, counts and events_end that refer to them, only when sealing (a reader counts
+  // the frames that every per-frame dataset has, so a reference never comes before its rows).
+  ForEachSeries([seal](auto& series) { series.WriteOut(seal); });
+  if (seal) {
+    events.WriteOut(RowSeries::Tail::kPartial);
+    events_end.WriteOut(true);
+  }
+  root_fields.series[time_series].WriteOut(seal);  // last: a frame counts once /time has it
   written_frames = frames;
 }
 
@@ -353,6 +355,9 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
   for (const BoneModel& b : model.bones) m.bone_names.push_back(b.name);
   m.instrument_count = model.instruments.size();
   m.flush_interval_s = model.options.flush_interval_s;
+  const double frame_s = model.options.dt_s * model.options.output_every_steps;
+  m.flush_frames = std::max<std::int64_t>(
+      1, std::llround(std::min(model.options.flush_interval_s / frame_s, 1e6)));
   m.xmf_path = options.write_xdmf ? XdmfPathFor(path) : "";
   if (options.deflate_level < 0 || options.deflate_level > 9 || options.float_deflate_level < 0 ||
       options.float_deflate_level > 9) {
@@ -396,10 +401,10 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
     m.CreateXdmf();
     m.file.StartSwmrWrite();  // from here on no object may be created
     m.WriteFrame(initial);
-    m.WriteBlock();
+    m.WriteBlock(true);
+    if (m.checkpoint.every_steps > 0) m.AppendCheckpoint(initial, 0);
     m.file.Flush();
     m.flushed = m.frames;
-    m.last_flush_time = initial.time_s;
     m.WriteXdmf();
   } catch (...) {
     // Do not leave a half-made file behind.
@@ -433,16 +438,31 @@ void RunWriter::Append(const State& s) {
   if (m.closed) throw std::logic_error("RunWriter: Append after Close");
   m.Validate(s);
   m.WriteFrame(s);
-  if (s.time_s - m.last_flush_time >= m.flush_interval_s) Flush();
+  // Flushes fall on chunk boundaries of the per-frame datasets (flush_frames frames per chunk):
+  // every flush writes whole chunks, which are never rewritten.
+  if (m.frames % m.flush_frames == 0) Flush();
+  if (m.CheckpointDue(s)) {
+    // The checkpoint alone is made durable: flushing the frames here, between two chunk
+    // boundaries, would write part-filled chunks. Its frame follows with the next flush.
+    m.AppendCheckpoint(s, m.frames - 1);
+    m.file.Flush();
+  }
+}
+
+void RunWriter::WriteCheckpoint(const State& s) {
+  Impl& m = *impl_;
+  if (m.closed) throw std::logic_error("RunWriter: WriteCheckpoint after Close");
+  if (m.checkpoint.every_steps == 0 || s.step == m.checkpoint.last_step) return;
+  m.AppendCheckpoint(s, s.step == m.last_step ? m.frames - 1 : -1);
+  Flush();
 }
 
 void RunWriter::Flush() {
   Impl& m = *impl_;
   if (m.closed) throw std::logic_error("RunWriter: Flush after Close");
-  m.WriteBlock();
+  m.WriteBlock(true);
   m.file.Flush();
   m.flushed = m.frames;
-  m.last_flush_time = m.last_time_s;
   // The sidecar is rewritten whole (every frame's entry names the datasets' current sizes), so
   // rewriting it at every flush would cost O(frames^2) over a long session: beyond
   // `xdmf_every_flush_frames` frames it is rewritten once it lags by the growth fraction, and
@@ -460,7 +480,7 @@ void RunWriter::Close() {
   m.closed = true;  // even if what follows throws: never write to a half-closed file
   std::exception_ptr error;
   try {
-    m.WriteBlock();
+    m.WriteBlock(true);
     m.file.Flush();
     m.flushed = m.frames;
   } catch (...) {
@@ -476,6 +496,7 @@ void RunWriter::Close() {
 }
 
 std::int64_t RunWriter::frames() const { return impl_->frames; }
+std::int64_t RunWriter::checkpoints() const { return impl_->checkpoint.count; }
 std::int64_t RunWriter::flushed_frames() const { return impl_->flushed; }
 const std::string& RunWriter::path() const { return impl_->path; }
 const std::string& RunWriter::xdmf_path() const { return impl_->xmf_path; }

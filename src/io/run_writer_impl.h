@@ -36,10 +36,11 @@ struct FieldSet {
 };
 
 /// Creates a dataset in g for every per-frame field of `sample` (rows of `slots` values when
-/// slots > 0). `skip` (a member of sample, or nullptr) gets none.
+/// slots > 0), `chunk` frames per chunk. `skip` (a member of sample, or nullptr) gets none.
 template <class S>
-void CreateFields(h5::Group& g, const S& sample, hsize_t slots, int z, int zf, FieldSet* out,
-                  const void* skip = nullptr, bool nan_poses = false, hsize_t nodes = 0) {
+void CreateFields(h5::Group& g, const S& sample, hsize_t slots, int z, int zf, hsize_t chunk,
+                  FieldSet* out, const void* skip = nullptr, bool nan_poses = false,
+                  hsize_t nodes = 0) {
   VisitFields(sample, [&](const auto& value, const FieldInfo& info) {
     using T = std::decay_t<decltype(value)>;
     if (info.store != FieldStore::kFrame || static_cast<const void*>(&value) == skip) return;
@@ -56,7 +57,7 @@ void CreateFields(h5::Group& g, const S& sample, hsize_t slots, int z, int zf, F
       if (t.width > 0) row.push_back(t.width);
       const FieldFill fill = nan_poses && std::is_same_v<T, Pose> ? FieldFill::kNaN : info.fill;
       out->series.emplace_back().Create(g, info.name, t.file, t.mem, row, grow,
-                                        detail::FillOf<T>(fill), info.bulk_float ? zf : z);
+                                        detail::FillOf<T>(fill), info.bulk_float ? zf : z, chunk);
       out->types.push_back(t);
       const std::size_t bytes = detail::BytesOf(value);
       out->row_bytes.push_back(bytes);
@@ -163,6 +164,17 @@ struct ToolOut {
   FrameSeries active, slot;
 };
 
+/// The /checkpoints datasets and what writing them needs (run_checkpoint.cpp).
+struct CheckpointOut {
+  RowSeries bytes;  // each checkpoint starts a chunk (sealed after it)
+  RowSeries offset, size, step, frame, hash, time;
+  State reference;                   // checkpoint bytes are XORed with it: the initial State
+  std::vector<std::uint8_t> buffer;  // encoding of the last checkpoint (capacity reused)
+  std::int64_t every_steps = 0;      // 0 = checkpoints off
+  std::int64_t count = 0;
+  std::int64_t last_step = -1;  // step of the last checkpoint (-1 = none yet)
+};
+
 }  // namespace detail
 
 struct RunWriter::Impl {
@@ -172,13 +184,16 @@ struct RunWriter::Impl {
   std::vector<std::string> body_names, thread_names, bone_names;
   std::size_t instrument_count = 0;
   double flush_interval_s = 1.0;
+  /// Frames between two flushes (Model flush interval / frame interval, at least 1); also the
+  /// frames per chunk of every per-frame dataset, so that a flush writes whole chunks.
+  std::int64_t flush_frames = 1;
   h5::File file;
   bool closed = false;
 
   detail::FieldSet root_fields;  // step, time, next_constraint_id, rng_state
   std::size_t time_series = 0;   // index of /time in root_fields: written last
   detail::FrameSeries events_end;
-  h5::Dataset events;
+  detail::RowSeries events;
   h5::Handle event_mem, event_file, constraint_mem, constraint_file, contact_mem, contact_file;
   std::vector<detail::BodyOut> bodies;
   std::vector<detail::ThreadOut> threads;
@@ -189,14 +204,14 @@ struct RunWriter::Impl {
   detail::BlockSeries constraints, contacts;
   detail::BlockSeries holes,
       anchors;  // float64 rows: AppendHoleRow / AppendAnchorRow of hdf5_layout.h
+  detail::CheckpointOut checkpoint;
 
   std::int64_t frames = 0, flushed = 0;
   std::int64_t xdmf_frames = 0;     // frames in the sidecar as last written
   std::int64_t written_frames = 0;  // frames whose every dataset is in the file (/time last)
   std::int64_t last_step = std::numeric_limits<std::int64_t>::min();
   std::int64_t last_events_step = std::numeric_limits<std::int64_t>::min();
-  std::int64_t events_total = 0, events_written = 0;
-  double last_flush_time = 0;
+  std::int64_t events_total = 0;
   std::vector<layout::EventRecord> pending_events;  // recorded since the last frame
   std::vector<layout::EventRecord> frame_events;    // of buffered frames, not yet in the file
   double last_time_s = 0;                           // of the last frame
@@ -212,6 +227,7 @@ struct RunWriter::Impl {
   std::vector<double> record_rows;
   mutable std::vector<int> seen;  // Validate: slots holding each instrument
 
+  hsize_t chunk() const { return static_cast<hsize_t>(flush_frames); }
   void CreateLayout(const Model& model, const State& initial);
   void CreateRoot(const Model& model, const State& initial);
   void CreateBodies(const Model& model, const State& initial);
@@ -219,6 +235,12 @@ struct RunWriter::Impl {
   void CreateBones(const Model& model, const State& initial);
   void CreateTools(const Model& model, const State& initial);
   void CreateRecords();
+  /// /checkpoints and the run's origin (/meta attributes); run_checkpoint.cpp.
+  void CreateCheckpoints(const Model& model);
+  /// True when s (just written as a frame) starts a new checkpoint interval.
+  bool CheckpointDue(const State& s) const;
+  /// Encodes s and appends it to /checkpoints (not flushed); `frame` = its frame or -1.
+  void AppendCheckpoint(const State& s, std::int64_t frame);
   void Validate(const State& s) const;
   /// Buffers `s` as the next frame; writes the buffered block when it is full.
   void WriteFrame(const State& s);
@@ -229,8 +251,9 @@ struct RunWriter::Impl {
   void WriteRecords(const State& s);
   void WriteEvents(const State& s);
   /// Writes every buffered frame to the file: all datasets, then /time (a frame counts once
-  /// /time has it, so a reader never sees part of a frame).
-  void WriteBlock();
+  /// /time has it, so a reader never sees part of a frame). `seal` (before a flush): block
+  /// series fill their part-filled last chunk (BlockSeries::WriteOut).
+  void WriteBlock(bool seal = false);
   /// Calls f on every per-frame and block series except /time, in write order.
   template <class F>
   void ForEachSeries(F f);

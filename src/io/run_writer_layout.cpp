@@ -40,6 +40,7 @@ void RunWriter::Impl::CreateLayout(const Model& model, const State& initial) {
   CreateBones(model, initial);
   CreateTools(model, initial);
   CreateRecords();
+  CreateCheckpoints(model);
 }
 
 void RunWriter::Impl::CreateRoot(const Model& model, const State& initial) {
@@ -64,7 +65,7 @@ void RunWriter::Impl::CreateRoot(const Model& model, const State& initial) {
   meta.SetAttr("hdf5_version", h5::LibraryVersion());
   meta.SetAttr("created_utc", UtcNow());
 
-  CreateFields(root, initial, 0, z, options.float_deflate_level, &root_fields);
+  CreateFields(root, initial, 0, z, options.float_deflate_level, chunk(), &root_fields);
   std::size_t i = 0;
   VisitFields(initial, [&](const auto& value, const FieldInfo& info) {
     if (info.store != FieldStore::kFrame) return;
@@ -74,10 +75,11 @@ void RunWriter::Impl::CreateRoot(const Model& model, const State& initial) {
 
   event_mem = layout::EventType(false);
   event_file = layout::EventType(true);
-  h5::DatasetSpec spec = h5::GrowingSpec({0}, sizeof(layout::EventRecord));
-  spec.deflate = z;
-  events = root.CreateDataset(layout::kEvents, event_file.get(), spec);
-  events_end.Create(root, layout::kEventsEnd, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+  // 32 events per chunk: the part-filled chunk is stored again at every flush with new events.
+  events.Create(root, layout::kEvents, event_file.get(), event_mem.get(), 0,
+                sizeof(layout::EventRecord), z, 32);
+  events_end.Create(root, layout::kEventsEnd, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z,
+                    chunk());
 }
 
 void RunWriter::Impl::CreateBodies(const Model& model, const State& initial) {
@@ -92,18 +94,22 @@ void RunWriter::Impl::CreateBodies(const Model& model, const State& initial) {
     g.SetAttr("initial_nodes", static_cast<std::int64_t>(sb.x.cols()));
     g.SetAttr("initial_elements", static_cast<std::int64_t>(sb.tets.size()));
     BodyOut& b = bodies[i];
-    CreateFields(g, sb, 0, z, zf, &b.fields, nullptr, false, static_cast<hsize_t>(sb.x.cols()));
-    b.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
+    CreateFields(g, sb, 0, z, zf, chunk(), &b.fields, nullptr, false,
+                 static_cast<hsize_t>(sb.x.cols()));
+    b.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z,
+                        chunk());
     b.element_count.Create(g, layout::kElementCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {},
-                           nullptr, z);
+                           nullptr, z, chunk());
     VisitFields(sb, [&](const auto& value, const FieldInfo& info) {
       if (static_cast<const void*>(&value) != &sb.tets) return;
       h5::DatasetSpec spec = h5::GrowingSpec({0, 4}, 4);
       spec.deflate = z;
       b.elements = g.CreateDataset(info.name, H5T_STD_I32LE, spec);
     });
-    b.alive_elements.Create(g, layout::kAliveElements, H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z);
-    b.positions.Create(g, FieldOf(sb, sb.x).name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf);
+    b.alive_elements.Create(g, layout::kAliveElements, H5T_STD_I32LE, H5T_NATIVE_INT32, 4, 16, z,
+                            chunk());
+    b.positions.Create(g, FieldOf(sb, sb.x).name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf,
+                       chunk());
   }
 }
 
@@ -117,12 +123,14 @@ void RunWriter::Impl::CreateThreads(const Model& model, const State& initial) {
     g.SetAttr("index", static_cast<std::int64_t>(i));
     g.SetAttr("diameter_mm", model.threads[i].diameter_mm);
     ThreadOut& t = threads[i];
-    CreateFields(g, initial.threads[i], 0, z, zf, &t.fields, nullptr, false,
+    CreateFields(g, initial.threads[i], 0, z, zf, chunk(), &t.fields, nullptr, false,
                  static_cast<hsize_t>(initial.threads[i].x.cols()));
-    t.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z);
-    t.alive_segments.Create(g, layout::kAliveSegments, H5T_STD_I32LE, H5T_NATIVE_INT32, 2, 8, z);
+    t.node_count.Create(g, layout::kNodeCount, H5T_STD_I64LE, H5T_NATIVE_INT64, {}, {}, nullptr, z,
+                        chunk());
+    t.alive_segments.Create(g, layout::kAliveSegments, H5T_STD_I32LE, H5T_NATIVE_INT32, 2, 8, z,
+                            chunk());
     t.positions.Create(g, FieldOf(initial.threads[i], initial.threads[i].x).name, H5T_IEEE_F64LE,
-                       H5T_NATIVE_DOUBLE, 3, 24, zf);
+                       H5T_NATIVE_DOUBLE, 3, 24, zf, chunk());
   }
 }
 
@@ -145,12 +153,13 @@ void RunWriter::Impl::CreateBones(const Model& model, const State& initial) {
         // A carving burr stores the whole surface every frame with a few vertices moved:
         // chunks of several surfaces let shuffle + deflate find the unmoved ones (a 64 KiB
         // chunk holds less than one shoulder-scene surface: ~4x larger on disk).
-        bones[i].vertices.Create(g, info.name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf, 16384);
+        bones[i].vertices.Create(g, info.name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 3, 24, zf,
+                                 chunk(), 16384);
       } else {
-        bones[i].triangles.Create(g, info.name, H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z);
+        bones[i].triangles.Create(g, info.name, H5T_STD_I32LE, H5T_NATIVE_INT32, 3, 12, z, chunk());
       }
     });
-    CreateFields(g, initial.bones[i], 0, z, zf, &bones[i].fields);
+    CreateFields(g, initial.bones[i], 0, z, zf, chunk(), &bones[i].fields);
   }
 }
 
@@ -170,14 +179,15 @@ void RunWriter::Impl::CreateTools(const Model& model, const State& initial) {
     g.SetAttr("kind", InstrumentKindName(im.kind));
     g.SetAttr("portal", im.portal);
     ToolOut& t = tools[i];
-    CreateFields(g, sample, 0, z, zf, &t.fields, &sample.instrument, true);
-    t.active.Create(g, layout::kActive, H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z);
-    t.slot.Create(g, layout::kSlot, H5T_STD_I8LE, H5T_NATIVE_INT8, {}, {}, &kNoSlot, z);
+    CreateFields(g, sample, 0, z, zf, chunk(), &t.fields, &sample.instrument, true);
+    t.active.Create(g, layout::kActive, H5T_STD_U8LE, H5T_NATIVE_UINT8, {}, {}, nullptr, z,
+                    chunk());
+    t.slot.Create(g, layout::kSlot, H5T_STD_I8LE, H5T_NATIVE_INT8, {}, {}, &kNoSlot, z, chunk());
   }
   h5::Group gs = file.root().CreateGroup(layout::kToolSlots);
-  CreateFields(gs, sample, kToolSlots, z, zf, &slots);
+  CreateFields(gs, sample, kToolSlots, z, zf, chunk(), &slots);
   h5::Group gc = file.root().CreateGroup(layout::kCamera);
-  CreateFields(gc, initial.camera, 0, z, zf, &camera);
+  CreateFields(gc, initial.camera, 0, z, zf, chunk(), &camera);
 }
 
 void RunWriter::Impl::CreateRecords() {
@@ -186,20 +196,20 @@ void RunWriter::Impl::CreateRecords() {
   constraint_mem = layout::ConstraintType(false);
   constraint_file = layout::ConstraintType(true);
   constraints.Create(gk, layout::kRows, constraint_file.get(), constraint_mem.get(), 0,
-                     sizeof(layout::ConstraintRecord), z);
+                     sizeof(layout::ConstraintRecord), z, chunk());
 
   h5::Group gtc = file.root().CreateGroup(layout::kToolContacts);
   contact_mem = layout::ToolContactType(false);
   contact_file = layout::ToolContactType(true);
   contacts.Create(gtc, layout::kRows, contact_file.get(), contact_mem.get(), 0,
-                  sizeof(layout::ToolContactRecord), z);
+                  sizeof(layout::ToolContactRecord), z, chunk());
 
   const State sample;
   h5::Group gho = file.root().CreateGroup(FieldOf(sample, sample.holes).name);
   holes.Create(gho, layout::kRows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kHoleColumns,
-               sizeof(double) * layout::kHoleColumns, z);
+               sizeof(double) * layout::kHoleColumns, z, chunk());
   h5::Group gan = file.root().CreateGroup(FieldOf(sample, sample.anchors).name);
   anchors.Create(gan, layout::kRows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, layout::kAnchorColumns,
-                 sizeof(double) * layout::kAnchorColumns, z);
+                 sizeof(double) * layout::kAnchorColumns, z, chunk());
 }
 }  // namespace arthrosim::io

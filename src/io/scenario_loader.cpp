@@ -10,9 +10,13 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <utility>
+#include <vector>
 
+#include "arthrosim/core/enum_names.h"
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/hash.h"
+#include "arthrosim/core/input_file.h"
 #include "arthrosim/core/units.h"
 #include "arthrosim/core/yaml_fields.h"
 #include "arthrosim/mesh/mesh_io.h"
@@ -41,6 +45,30 @@ void CheckGravity(const YamlSection& root, const Vec3& gravity_mm_s2) {
   }
 }
 
+// The scenario's names of the solver choices.
+constexpr EnumName<Integrator> kIntegrators[] = {{Integrator::kImplicitEuler, "implicit_euler"},
+                                                 {Integrator::kArkode, "arkode"}};
+constexpr EnumName<SystemProduct> kProducts[] = {{SystemProduct::kAssembled, "assembled"},
+                                                 {SystemProduct::kMatrixFree, "matrix_free"}};
+constexpr EnumName<Preconditioner> kPreconditioners[] = {
+    {Preconditioner::kRestCholesky, "rest_cholesky"},
+    {Preconditioner::kBlockJacobi, "block_jacobi"}};
+
+// The value `table` names by the string at `key` (`fallback` when absent). Throws InputError
+// ("expected a or b, got 'x'") for a string the table does not list.
+template <class E, std::size_t N>
+E ReadChoice(const YamlSection& s, const char* key, const EnumName<E> (&table)[N],
+             const char* fallback) {
+  const std::string name = s.String(key, fallback);
+  if (const std::optional<E> value = ValueIn(table, name)) return *value;
+  std::string expected;
+  for (std::size_t i = 0; i < N; ++i) {
+    expected += i == 0 ? "" : (i + 1 == N ? " or " : ", ");
+    expected += table[i].name;
+  }
+  s.Fail(key, "expected " + expected + ", got '" + name + "'");
+}
+
 void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   if (root.Has("time")) {
     YamlSection t(root.reader(), root.Get("time"), "time", {"dt", "duration"});
@@ -53,44 +81,27 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   if (root.Has("solver")) {
     YamlSection s(root.reader(), root.Get("solver"), "solver",
                   {"integrator", "cg_max_iterations", "cg_tolerance", "product", "preconditioner",
-                   "refactor_iterations"});
-    const std::string integrator = s.String("integrator", "implicit_euler");
-    if (integrator == "implicit_euler") {
-      m->solver.integrator = Integrator::kImplicitEuler;
-    } else if (integrator == "arkode") {
-      m->solver.integrator = Integrator::kArkode;
-    } else {
-      root.reader().Fail(s.Get("integrator"), s.Field("integrator"),
-                         "expected implicit_euler or arkode, got '" + integrator + "'");
-    }
+                   "refactor_iterations", "refactor_lag_steps"});
+    m->solver.integrator = ReadChoice(s, "integrator", kIntegrators, "implicit_euler");
     m->solver.cg_max_iterations =
         static_cast<int>(s.Integer("cg_max_iterations", 100, 1, ranges::kMaxIterations));
     m->solver.cg_tolerance = s.Positive("cg_tolerance", 1e-8);
-    const std::string product = s.String("product", "assembled");
-    if (product == "assembled") {
-      m->solver.product = SystemProduct::kAssembled;
-    } else if (product == "matrix_free") {
-      m->solver.product = SystemProduct::kMatrixFree;
-    } else {
-      s.Fail("product", "expected assembled or matrix_free, got '" + product + "'");
-    }
-    const std::string pre = s.String("preconditioner", "rest_cholesky");
-    if (pre == "rest_cholesky") {
-      m->solver.preconditioner = Preconditioner::kRestCholesky;
-    } else if (pre == "block_jacobi") {
-      m->solver.preconditioner = Preconditioner::kBlockJacobi;
-    } else {
-      s.Fail("preconditioner", "expected rest_cholesky or block_jacobi, got '" + pre + "'");
-    }
+    m->solver.product = ReadChoice(s, "product", kProducts, "assembled");
+    m->solver.preconditioner = ReadChoice(s, "preconditioner", kPreconditioners, "rest_cholesky");
     m->solver.refactor_iterations = static_cast<int>(
         s.Integer("refactor_iterations", m->solver.refactor_iterations, 0, ranges::kMaxIterations));
+    m->solver.refactor_lag_steps =
+        static_cast<int>(s.Integer("refactor_lag_steps", m->solver.refactor_lag_steps, 1, 1000));
   }
   if (root.Has("output")) {
-    YamlSection o(root.reader(), root.Get("output"), "output", {"file", "every", "flush_interval"});
+    YamlSection o(root.reader(), root.Get("output"), "output",
+                  {"file", "every", "flush_interval", "checkpoint_every"});
     m->options.output_file = o.String("file", "run.h5");
     m->options.output_every_steps =
         static_cast<int>(o.Integer("every", 1, 1, ranges::kMaxOutputEvery));
     m->options.flush_interval_s = o.Quantity("flush_interval", ranges::kFlushInterval, 1.0);
+    m->options.checkpoint_every_s =
+        o.Quantity("checkpoint_every", ranges::kCheckpointInterval, m->options.checkpoint_every_s);
   }
 }
 
@@ -127,23 +138,20 @@ void ReadContact(const YamlSection& root, Model* m) {
   c.tissue_tissue_contacts = s.Bool("tissue_tissue_contacts", c.tissue_tissue_contacts);
   c.bone_tip_contacts = s.Bool("bone_tip_contacts", c.bone_tip_contacts);
   if (!s.Has("stiffness")) return;
-  YamlSection k(root.reader(), s.Get("stiffness"), s.Field("stiffness"),
-                {"tool_tissue", "tool_thread", "tool_volume", "thread_tissue", "tissue_tissue",
-                 "bone", "tool_bone"});
-  c.tool_tissue_stiffness_n_per_mm =
-      k.Quantity("tool_tissue", ranges::kContactStiffness, c.tool_tissue_stiffness_n_per_mm);
-  c.tool_thread_stiffness_n_per_mm =
-      k.Quantity("tool_thread", ranges::kContactStiffness, c.tool_thread_stiffness_n_per_mm);
-  c.tool_volume_stiffness_n_per_mm =
-      k.Quantity("tool_volume", ranges::kContactStiffness, c.tool_volume_stiffness_n_per_mm);
-  c.thread_tissue_stiffness_n_per_mm =
-      k.Quantity("thread_tissue", ranges::kContactStiffness, c.thread_tissue_stiffness_n_per_mm);
-  c.tissue_tissue_stiffness_n_per_mm =
-      k.Quantity("tissue_tissue", ranges::kContactStiffness, c.tissue_tissue_stiffness_n_per_mm);
-  c.bone_stiffness_n_per_mm =
-      k.Quantity("bone", ranges::kContactStiffness, c.bone_stiffness_n_per_mm);
-  c.tool_bone_stiffness_n_per_mm =
-      k.Quantity("tool_bone", ranges::kContactStiffness, c.tool_bone_stiffness_n_per_mm);
+  // The contact stiffnesses (N/mm) by their key under `stiffness:`.
+  static constexpr std::pair<const char*, double ContactOptions::*> kStiffness[] = {
+      {"tool_tissue", &ContactOptions::tool_tissue_stiffness_n_per_mm},
+      {"tool_thread", &ContactOptions::tool_thread_stiffness_n_per_mm},
+      {"tool_volume", &ContactOptions::tool_volume_stiffness_n_per_mm},
+      {"thread_tissue", &ContactOptions::thread_tissue_stiffness_n_per_mm},
+      {"tissue_tissue", &ContactOptions::tissue_tissue_stiffness_n_per_mm},
+      {"bone", &ContactOptions::bone_stiffness_n_per_mm},
+      {"tool_bone", &ContactOptions::tool_bone_stiffness_n_per_mm}};
+  std::vector<const char*> keys;
+  for (const auto& [key, member] : kStiffness) keys.push_back(key);
+  const YamlSection k(root.reader(), s.Get("stiffness"), s.Field("stiffness"), keys);
+  for (const auto& [key, member] : kStiffness)
+    c.*member = k.Quantity(key, ranges::kContactStiffness, c.*member);
 }
 
 // Optional `thread_solver:` section: the suture solver's settings (docs/scenario-format.md).
@@ -557,11 +565,7 @@ Model LoadScenarioFromText(const std::string& text, const std::string& path,
 }
 
 Model LoadScenario(const std::string& path, std::vector<std::string>* warnings) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot open scenario file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return LoadScenarioFromText(buffer.str(), path, warnings);
+  return LoadScenarioFromText(ReadInputFile(path, "", "cannot open scenario file"), path, warnings);
 }
 
 }  // namespace arthrosim::io

@@ -119,10 +119,11 @@ void ReadScorpionNeedle(const YamlSection& ops, ScorpionNeedleOptions* o) {
   if (!ops.Has("scorpion_needle")) return;
   const YamlSection s(
       ops.reader(), ops.Get("scorpion_needle"), ops.Field("scorpion_needle"),
-      {"dist_limit_1", "dist_limit_2", "node_spacing", "nodes_through", "tissue_stiffness",
-       "thread_stiffness", "stitch_stiffness", "stitch_friction"});
+      {"dist_limit_1", "dist_limit_2", "grasp_jaw", "node_spacing", "nodes_through",
+       "tissue_stiffness", "thread_stiffness", "stitch_stiffness", "stitch_friction"});
   o->dist_limit_1_mm = s.Positive("dist_limit_1", o->dist_limit_1_mm);
   o->dist_limit_2_mm = s.Positive("dist_limit_2", o->dist_limit_2_mm);
+  o->grasp_jaw = InRange(s, "grasp_jaw", o->grasp_jaw, 0, 1, "in [0, 1]");
   o->node_spacing_mm = s.Positive("node_spacing", o->node_spacing_mm);
   o->nodes_through = static_cast<int>(s.Integer("nodes_through", o->nodes_through, 1));
   o->tissue_stiffness_n_per_mm = s.Positive("tissue_stiffness", o->tissue_stiffness_n_per_mm);

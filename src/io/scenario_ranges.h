@@ -13,6 +13,9 @@ namespace arthrosim::io::ranges {
 inline constexpr QuantityRange kTimeStep{0, true, 0.1, 1e-4, 0.04, "s"};
 inline constexpr QuantityRange kDuration{0, true, 86400, 1e-3, 3600, "s"};
 inline constexpr QuantityRange kFlushInterval{0, true, 3600, 0.01, 60, "s"};
+// Full State checkpoints: each is a few hundred kB on the shoulder scene; more often than every
+// 0.1 s is a unit slip, rarer than every 10 minutes leaves little to resume from.
+inline constexpr QuantityRange kCheckpointInterval{0, true, 86400, 0.1, 600, "s"};
 
 // Soft tissue (SI as written). Muscle is ~1e4-1e5 Pa, tendon ~1e9 Pa; a simulated 1 Pa tissue
 // or a 1 GPa one still runs, beyond that no tissue is.

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "arthrosim/core/enum_names.h"
 #include "arthrosim/core/state_fields.h"
 #include "arthrosim/io/hdf5.h"
 #include "arthrosim/io/hdf5_layout.h"
@@ -70,15 +71,10 @@ void AppendRows(std::string& x, XdmfDialect dialect, const std::string& h5, cons
 }
 
 const char* TopologyType(XdmfCell c) {
-  switch (c) {
-    case XdmfCell::kTetrahedron:
-      return "Tetrahedron";
-    case XdmfCell::kTriangle:
-      return "Triangle";
-    case XdmfCell::kPolyline:
-      return "Polyline";
-  }
-  return "Tetrahedron";
+  static constexpr EnumName<XdmfCell> kNames[] = {{XdmfCell::kTetrahedron, "Tetrahedron"},
+                                                  {XdmfCell::kTriangle, "Triangle"},
+                                                  {XdmfCell::kPolyline, "Polyline"}};
+  return NameIn(kNames, c, "Tetrahedron");
 }
 
 // Emits the XML of `run` piecewise: emit(text) receives the header, then each listed frame, then

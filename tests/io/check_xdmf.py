@@ -14,6 +14,8 @@ import xml.etree.ElementTree as ET
 import h5py
 import numpy as np
 
+from check_report import report
+
 failures = []
 
 
@@ -108,12 +110,7 @@ def main():
                 else:
                     check(False, f"unknown grid {g.get('Name')}")
         check(grids_seen > 0, "some grids")
-    if failures:
-        for x in failures[:30]:
-            print("FAIL:", x)
-        return 1
-    print(f"check_xdmf.py: {len(frames)} frames, {grids_seen} grids ok")
-    return 0
+    return report(failures, f"check_xdmf.py: {len(frames)} frames, {grids_seen} grids ok")
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 chunking, filters, fill values).
 
 usage: compare_runs.py A.h5 B.h5 [--quiet] [--ignore-event KIND ...]
-Wall-clock metadata (/meta attribute created_utc) is the only thing allowed to differ; the HDF5
+Wall-clock metadata (/meta attribute created_utc) and the input's provenance (/meta attributes
+trajectory, trajectory_sha256, end_step) are the only things allowed to differ; the HDF5
 files themselves may differ in bytes (object addresses, timestamps). --ignore-event KIND leaves
 out events of that kind from /events and /events_end before comparing them (e.g. realtime_lag,
 which a live run records about the wall clock and its replay cannot). Exit 0 if equal, 1 if not.
@@ -13,7 +14,12 @@ import sys
 import h5py
 import numpy as np
 
+from check_report import report
+
 WALL_CLOCK = {("/meta", "created_utc")}
+# Where the input came from (a live session and its replay name it differently) and the step the
+# run was asked to reach (open-ended live): provenance, not what was simulated.
+WALL_CLOCK |= {("/meta", k) for k in ("trajectory", "trajectory_sha256", "end_step")}
 # Storage settings that must match too (chunk shape, filters, growable dimensions).
 STORAGE = ("chunks", "compression", "compression_opts", "shuffle", "maxshape")
 
@@ -94,13 +100,8 @@ def main():
                         diffs.append(f"{path}: string differs")
                 elif np.asarray(oa[()]).tobytes() != np.asarray(ob[()]).tobytes():
                     diffs.append(f"{path}: data differs")
-    if diffs:
-        if not quiet:
-            for d in diffs[:20]:
-                print("DIFF:", d)
-        return 1
-    print(f"compare_runs.py: {compared} datasets identical")
-    return 0
+    return report(diffs, f"compare_runs.py: {compared} datasets identical", tag="DIFF:", most=20,
+                  quiet=quiet)
 
 
 if __name__ == "__main__":

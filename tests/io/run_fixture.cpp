@@ -53,6 +53,25 @@ Pose MakePose(const Vec3& p, double angle, const Vec3& axis) {
   return pose;
 }
 
+// A constraint end on node `node` of entity `index` of `kind` alone.
+ConstraintEnd NodeEnd(ConstraintEnd::Kind kind, std::int32_t index, std::int32_t node) {
+  ConstraintEnd e;
+  e.kind = kind;
+  e.index = index;
+  e.nodes = {node, -1, -1, -1};
+  e.weights = {1, 0, 0, 0};
+  return e;
+}
+
+// A constraint end on tool slot `slot`, `offset_mm` in the tool frame.
+ConstraintEnd ToolEnd(std::int32_t slot, const Vec3& offset_mm) {
+  ConstraintEnd e;
+  e.kind = ConstraintEnd::Kind::kTool;
+  e.index = slot;
+  e.offset_mm = offset_mm;
+  return e;
+}
+
 }  // namespace
 
 Model MakeModel() {
@@ -186,13 +205,8 @@ State MakeFrame(const Model& model, int f) {
     SpringConstraint c;
     c.id = 1;
     c.tag = "grasp";
-    c.a.kind = ConstraintEnd::Kind::kSoftBody;
-    c.a.index = 0;
-    c.a.nodes = {5, -1, -1, -1};
-    c.a.weights = {1, 0, 0, 0};
-    c.b.kind = ConstraintEnd::Kind::kTool;
-    c.b.index = 0;
-    c.b.offset_mm = Vec3(0, 0, 1);
+    c.a = NodeEnd(ConstraintEnd::Kind::kSoftBody, 0, 5);
+    c.b = ToolEnd(0, Vec3(0, 0, 1));
     c.stiffness_n_per_mm = 2.0;
     s.constraints.push_back(c);
   }
@@ -200,10 +214,7 @@ State MakeFrame(const Model& model, int f) {
     SpringConstraint c;
     c.id = 2;
     c.tag = "suture";
-    c.a.kind = ConstraintEnd::Kind::kThread;
-    c.a.index = 0;
-    c.a.nodes = {0, -1, -1, -1};
-    c.a.weights = {1, 0, 0, 0};
+    c.a = NodeEnd(ConstraintEnd::Kind::kThread, 0, 0);
     c.b.kind = ConstraintEnd::Kind::kSoftBody;
     c.b.index = 0;
     c.b.nodes = {1, 2, 4, 7};

@@ -89,12 +89,12 @@ TEST(Xdmf, WrittenSidecarListsTheFramesARebuildLists) {
     for (int f = 1; f < 28; ++f) w.Append(MakeFrame(model, f));
   }
   const std::string text = Slurp(XdmfPathFor(path));
-  EXPECT_EQ(Count(text, "<Time "), 7);  // frames 0, 5, ..., 25 (0.1 s apart) and the last, 27
+  EXPECT_EQ(Count(text, "<Time "), 4);  // frames 0, 10, 20 (0.2 s apart) and the last, 27
   EXPECT_NE(text.find("Name=\"frame27\""), std::string::npos);
   EXPECT_EQ(XdmfText(XdmfRunFromFile(path)), text);
 }
 
-// ParaView needs no 50 frames per second: by default frames are listed 0.1 s apart, the first
+// ParaView needs no 50 frames per second: by default frames are listed 0.2 s apart, the first
 // and the last always.
 TEST(Xdmf, FramesAreListedAtTheInterval) {
   XdmfRun run;
@@ -110,7 +110,7 @@ TEST(Xdmf, FramesAreListedAtTheInterval) {
   }
   run.meshes.push_back(m);
   const std::string text = XdmfText(run);
-  EXPECT_EQ(Count(text, "<Time "), 12);  // frames 0, 5, ..., 50 and the last, 52
+  EXPECT_EQ(Count(text, "<Time "), 7);  // frames 0, 10, ..., 50 and the last, 52
   EXPECT_NE(text.find("Name=\"frame50\""), std::string::npos);
   EXPECT_NE(text.find("Name=\"frame52\""), std::string::npos);
   EXPECT_EQ(text.find("Name=\"frame51\""), std::string::npos);

@@ -71,9 +71,15 @@ struct DatasetSpec {
   const void* fill = nullptr;     ///< fill value in the dataset's type, or nullptr for zeros
 };
 
-/// Chunked, compressed spec for a dataset growing along dim 0 (and along dims listed in
-/// `also_grow`), initial extent `dims`. The chunk holds whole rows and ~64 KiB at most per
-/// chunk unless one row alone is bigger (then one row, capped at 1 MiB).
+/// Chunks along a dimension listed in GrowingSpec's `also_grow`: its maximum extent. Kept small:
+/// the extensible-array chunk index spans the maximum (1024 chunks per index page), so a large
+/// one costs a page per few time chunks.
+inline constexpr hsize_t kGrowChunks = 16;
+
+/// Chunked, compressed spec for a dataset growing along dim 0 without bound (and along dims
+/// listed in `also_grow` up to kGrowChunks chunks), initial extent `dims`. The chunk holds
+/// whole rows and ~64 KiB at most per chunk unless one row alone is bigger (then one row,
+/// capped at 1 MiB).
 DatasetSpec GrowingSpec(std::vector<hsize_t> dims, std::size_t element_bytes,
                         std::vector<int> also_grow = {});
 
@@ -100,6 +106,13 @@ class Dataset : public Object {
   /// Reads the hyperslab [start, start+count) into contiguous memory of type `mem_type`.
   void Read(const std::vector<hsize_t>& start, const std::vector<hsize_t>& count, hid_t mem_type,
             void* data) const;
+  /// Stores one whole chunk as is (H5Dwrite_chunk): `bytes` bytes at `data`, already passed
+  /// through the dataset's filters (`filter_mask` bit i set = filter i skipped), at the chunk
+  /// whose first element is `offset` (rank entries, multiples of the chunk shape). Bypasses the
+  /// chunk cache: under SWMR, HDF5 1.10 keeps every chunk that H5Dwrite wrote in memory until
+  /// the file is closed.
+  void WriteChunk(const hsize_t* offset, const void* data, std::size_t bytes,
+                  std::uint32_t filter_mask = 0);
   /// Appends `rows` rows along dim 0; the other dimensions keep their current extent.
   void AppendRows(hid_t mem_type, const void* data, hsize_t rows);
   template <class T>

@@ -3,9 +3,11 @@
 // and the XDMF sidecar so that the three cannot drift apart.
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "arthrosim/core/state.h"
+#include "arthrosim/core/state_fields.h"
 #include "arthrosim/io/hdf5.h"
 
 namespace arthrosim::io::layout {
@@ -24,15 +26,52 @@ inline constexpr const char* kCamera = "camera";
 inline constexpr const char* kConstraints = "constraints";
 inline constexpr const char* kToolContacts = "tool_contacts";
 inline constexpr const char* kMeta = "meta";
-inline constexpr const char* kHoles = "holes";      ///< awl pilot holes (State::holes)
-inline constexpr const char* kAnchors = "anchors";  ///< seated anchors (State::anchors)
+
+/// The float64 row of a fixed-size record (BoneHole, AnchorState): its members in State field
+/// table order (core/state_fields.h), a vector as its three coordinates, anything else cast to
+/// double. Appends the row of `record` to *rows.
+template <class Record>
+void AppendRecordRow(const Record& record, std::vector<double>* rows) {
+  VisitFields(record, [&](const auto& member, const FieldInfo&) {
+    if constexpr (std::is_same_v<std::decay_t<decltype(member)>, Vec3>) {
+      rows->insert(rows->end(), {member.x(), member.y(), member.z()});
+    } else {
+      rows->push_back(static_cast<double>(member));
+    }
+  });
+}
+
+/// The record of a row written by AppendRecordRow.
+template <class Record>
+Record RecordFromRow(const double* row) {
+  Record record;
+  std::size_t i = 0;
+  VisitFields(record, [&](auto& member, const FieldInfo&) {
+    using M = std::decay_t<decltype(member)>;
+    if constexpr (std::is_same_v<M, Vec3>) {
+      member = Vec3(row[i], row[i + 1], row[i + 2]);
+      i += 3;
+    } else {
+      member = static_cast<M>(row[i++]);
+    }
+  });
+  return record;
+}
+
+/// The number of values in a row written by AppendRecordRow.
+template <class Record>
+int RecordColumns() {
+  std::vector<double> row;
+  AppendRecordRow(Record{}, &row);
+  return static_cast<int>(row.size());
+}
 
 /// Columns of a /holes/rows row: bone, tool_slot, entry xyz (mm), axis xyz, depth (mm),
 /// diameter (mm), angle to the surface (deg), open (0/1).
-inline constexpr int kHoleColumns = 12;
+inline const int kHoleColumns = RecordColumns<BoneHole>();
 /// Columns of an /anchors/rows row: bone, hole, position xyz (mm), axis xyz, depth below the
 /// cortex (mm), insertion angle (deg).
-inline constexpr int kAnchorColumns = 10;
+inline const int kAnchorColumns = RecordColumns<AnchorState>();
 
 /// Updates `held` (the stored copy of positions x, 3 x n column-major) to what the next frame
 /// stores: every coordinate rounded to a multiple of `quantum_mm` (0: exact); a node keeps its
@@ -44,41 +83,16 @@ void HoldPositions(const Points& x, double quantum_mm, double tolerance_mm,
 
 /// Appends the row of a hole (kHoleColumns values) to *rows.
 inline void AppendHoleRow(const BoneHole& h, std::vector<double>* rows) {
-  rows->insert(rows->end(),
-               {static_cast<double>(h.bone), static_cast<double>(h.tool_slot), h.entry_mm.x(),
-                h.entry_mm.y(), h.entry_mm.z(), h.axis.x(), h.axis.y(), h.axis.z(), h.depth_mm,
-                h.diameter_mm, h.angle_deg, static_cast<double>(h.open)});
+  AppendRecordRow(h, rows);
 }
 /// The hole of a row written by AppendHoleRow.
-inline BoneHole HoleFromRow(const double* r) {
-  BoneHole h;
-  h.bone = static_cast<std::int32_t>(r[0]);
-  h.tool_slot = static_cast<std::int32_t>(r[1]);
-  h.entry_mm = Vec3(r[2], r[3], r[4]);
-  h.axis = Vec3(r[5], r[6], r[7]);
-  h.depth_mm = r[8];
-  h.diameter_mm = r[9];
-  h.angle_deg = r[10];
-  h.open = static_cast<std::uint8_t>(r[11]);
-  return h;
-}
+inline BoneHole HoleFromRow(const double* r) { return RecordFromRow<BoneHole>(r); }
 /// Appends the row of an anchor (kAnchorColumns values) to *rows.
 inline void AppendAnchorRow(const AnchorState& a, std::vector<double>* rows) {
-  rows->insert(rows->end(), {static_cast<double>(a.bone), static_cast<double>(a.hole),
-                             a.position_mm.x(), a.position_mm.y(), a.position_mm.z(), a.axis.x(),
-                             a.axis.y(), a.axis.z(), a.depth_mm, a.angle_deg});
+  AppendRecordRow(a, rows);
 }
 /// The anchor of a row written by AppendAnchorRow.
-inline AnchorState AnchorFromRow(const double* r) {
-  AnchorState a;
-  a.bone = static_cast<std::int32_t>(r[0]);
-  a.hole = static_cast<std::int32_t>(r[1]);
-  a.position_mm = Vec3(r[2], r[3], r[4]);
-  a.axis = Vec3(r[5], r[6], r[7]);
-  a.depth_mm = r[8];
-  a.angle_deg = r[9];
-  return a;
-}
+inline AnchorState AnchorFromRow(const double* r) { return RecordFromRow<AnchorState>(r); }
 
 // Datasets that are not State fields (those take their names from the State field table,
 // core/state_fields.h): the event stream, per-entity counts and views derived for readers.

@@ -35,7 +35,8 @@ class RunReader {
   const RunInfo& info() const;
   /// Frames complete in the file (as of opening or the last Refresh()).
   std::int64_t frame_count() const;
-  /// Picks up frames a live writer has flushed since; returns the new frame count.
+  /// Picks up frames a live writer has flushed since (by reopening the file); returns the new
+  /// frame count. @throws like the constructor; the reader is then unusable.
   std::int64_t Refresh();
   /// Simulated time (s) and step of frame k.
   double time(std::int64_t k) const;

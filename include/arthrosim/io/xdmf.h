@@ -11,8 +11,8 @@
 
 namespace arthrosim::io {
 
-/// Default XdmfRun::interval_s: 10 listed frames per simulated second.
-inline constexpr double kXdmfIntervalS = 0.1;
+/// Default XdmfRun::interval_s: 5 listed frames per simulated second.
+inline constexpr double kXdmfIntervalS = 0.2;
 
 /// A concatenated block series of the run file referenced per frame.
 struct XdmfSeries {
