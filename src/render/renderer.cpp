@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "arthrosim/core/enum_names.h"
 #include "cull.h"
 #include "gl_api.h"
 #include "overlay.h"
@@ -67,17 +68,34 @@ Mat4 Perspective(double tan_half_y, double aspect, double n, double f) {
   return m;
 }
 
+// Clears colour (to `background`, or to black, "no tissue", for the tissue-id pass) and depth.
+void ClearColourAndDepth(bool ids_mode, const float background[3]) {
+  if (ids_mode) {
+    glClearColor(0, 0, 0, 1);
+  } else {
+    glClearColor(background[0], background[1], background[2], 1.0f);
+  }
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+}
+
+// Throws RenderError("<failed>" + the info log) unless `object`'s `status` (a shader's compile
+// or a program's link status, read by get_status) is set.
+template <class GetStatus, class GetLog>
+void CheckStatus(GetStatus get_status, GetLog get_log, GLuint object, GLenum status,
+                 const char* failed) {
+  GLint ok = 0;
+  get_status(object, status, &ok);
+  if (ok) return;
+  char log[2048] = {};
+  get_log(object, sizeof log, nullptr, log);
+  throw RenderError(std::string(failed) + log);
+}
+
 GLuint Compile(const GlApi& gl, GLenum type, const char* source) {
   const GLuint s = gl.CreateShader(type);
   gl.ShaderSource(s, 1, &source, nullptr);
   gl.CompileShader(s);
-  GLint ok = 0;
-  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
-    throw RenderError(std::string("GLSL compile failed: ") + log);
-  }
+  CheckStatus(gl.GetShaderiv, gl.GetShaderInfoLog, s, GL_COMPILE_STATUS, "GLSL compile failed: ");
   return s;
 }
 
@@ -89,13 +107,7 @@ GLuint Link(const GlApi& gl, const char* vs, const char* fs) {
   gl.LinkProgram(p);
   gl.DeleteShader(v);
   gl.DeleteShader(f);
-  GLint ok = 0;
-  gl.GetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    gl.GetProgramInfoLog(p, sizeof log, nullptr, log);
-    throw RenderError(std::string("GLSL link failed: ") + log);
-  }
+  CheckStatus(gl.GetProgramiv, gl.GetProgramInfoLog, p, GL_LINK_STATUS, "GLSL link failed: ");
   return p;
 }
 
@@ -130,24 +142,15 @@ double MeteredExposure(const std::vector<float>& rgba, int size) {
 
 }  // namespace
 
+constexpr EnumName<View> kViewNames[] = {
+    {View::kScope, "scope"}, {View::kOverview, "overview"}, {View::kBoth, "both"}};
+
 View ParseView(const std::string& name) {
-  if (name == "scope") return View::kScope;
-  if (name == "overview") return View::kOverview;
-  if (name == "both") return View::kBoth;
+  if (const std::optional<View> view = ValueIn(kViewNames, name)) return *view;
   throw std::invalid_argument("view '" + name + "': expected scope, overview or both");
 }
 
-const char* ViewName(View view) {
-  switch (view) {
-    case View::kScope:
-      return "scope";
-    case View::kOverview:
-      return "overview";
-    case View::kBoth:
-      return "both";
-  }
-  return "?";
-}
+const char* ViewName(View view) { return NameIn(kViewNames, view, "?"); }
 
 struct Renderer::Impl {
   OSMesaContext ctx = nullptr;
@@ -401,12 +404,7 @@ struct Renderer::Impl {
     gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, tex, tex);
     glDisable(GL_SCISSOR_TEST);
-    if (ids_mode) {
-      glClearColor(0, 0, 0, 1);
-    } else {
-      glClearColor(kFluidColor[0], kFluidColor[1], kFluidColor[2], 1.0f);
-    }
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    ClearColourAndDepth(ids_mode, kFluidColor);
     glEnable(GL_DEPTH_TEST);
     // The lens pass samples only the inscribed disc of the texture (bilinear: one texel
     // beyond). Depth 0 outside a polygon around it (2 texels of margin) makes every mesh
@@ -491,12 +489,7 @@ struct Renderer::Impl {
     glViewport(vp.x, vp.y, vp.w, vp.h);
     glScissor(vp.x, vp.y, vp.w, vp.h);
     glEnable(GL_SCISSOR_TEST);
-    if (ids_mode) {
-      glClearColor(0, 0, 0, 1);
-    } else {
-      glClearColor(kOverviewBackground[0], kOverviewBackground[1], kOverviewBackground[2], 1.0f);
-    }
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    ClearColourAndDepth(ids_mode, kOverviewBackground);
     glDisable(GL_SCISSOR_TEST);
     glEnable(GL_DEPTH_TEST);
     DrawMeshes(scene, view_proj, eye, false, -dir, 0.0,

@@ -31,6 +31,20 @@ std::unique_ptr<FrameSink> MakeSink(const RenderOptions& options, const std::str
                                       ffmpeg);
 }
 
+void StepOverlayText(const std::vector<StepSpan>& steps, double t_s, Overlay* overlay) {
+  std::size_t current = steps.size();
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    const double start = steps[i].start_s;
+    if (!(start <= t_s)) continue;  // NaN: never started
+    if (current == steps.size() || start >= steps[current].start_s) current = i;
+  }
+  if (current == steps.size()) return;
+  const StepSpan& s = steps[current];
+  overlay->plan_step =
+      "step " + std::to_string(current + 1) + "/" + std::to_string(steps.size()) + ": " + s.title;
+  overlay->verdict = s.end_s <= t_s ? "done" : "in progress";
+}
+
 SequenceRenderer::SequenceRenderer(const Model& model, const RenderOptions& options,
                                    Renderer* renderer, FrameSink* sink, OverlayTextFn overlay_text)
     : model_(model),

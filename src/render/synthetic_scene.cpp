@@ -10,35 +10,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// Closed UV ellipsoid, outward triangles: 2 poles + (n - 1) rings of 2n vertices.
-mesh::TriMesh Ellipsoid(const Vec3& centre, const Vec3& radii, int n) {
-  mesh::TriMesh m;
-  const int slices = 2 * n, rings = n - 1;
-  m.nodes.resize(3, 2 + rings * slices);
-  m.nodes.col(0) = centre + Vec3(0, 0, radii.z());
-  for (int j = 0; j < rings; ++j) {
-    const double phi = kPi * (j + 1) / n;
-    for (int i = 0; i < slices; ++i) {
-      const double th = 2 * kPi * i / slices;
-      m.nodes.col(1 + j * slices + i) =
-          centre + radii.cwiseProduct(Vec3(std::sin(phi) * std::cos(th),
-                                           std::sin(phi) * std::sin(th), std::cos(phi)));
-    }
-  }
-  const int south = 1 + rings * slices;
-  m.nodes.col(south) = centre - Vec3(0, 0, radii.z());
-  auto v = [&](int j, int i) { return 1 + j * slices + (i % slices); };
-  for (int i = 0; i < slices; ++i) m.tris.push_back({0, v(0, i), v(0, i + 1)});
-  for (int j = 0; j + 1 < rings; ++j) {
-    for (int i = 0; i < slices; ++i) {
-      m.tris.push_back({v(j, i), v(j + 1, i), v(j + 1, i + 1)});
-      m.tris.push_back({v(j, i), v(j + 1, i + 1), v(j, i + 1)});
-    }
-  }
-  for (int i = 0; i < slices; ++i) m.tris.push_back({south, v(rings - 1, i + 1), v(rings - 1, i)});
-  return m;
-}
-
 // A curved slab of cells x cells x cells hexahedra (5 tets each, alternating so that the
 // faces match) lying on a sphere of radius r0 (thickness t) around `centre`.
 mesh::TetMesh CurvedSlab(const Vec3& centre, double r0, double t, int nx, int ny, int nz) {
@@ -90,6 +61,34 @@ Pose ToolPose(const Vec3& tip, const Vec3& forward) {
 
 }  // namespace
 
+mesh::TriMesh UvEllipsoid(const Vec3& centre, const Vec3& radii, int n) {
+  mesh::TriMesh m;
+  const int slices = 2 * n, rings = n - 1;
+  m.nodes.resize(3, 2 + rings * slices);
+  m.nodes.col(0) = centre + Vec3(0, 0, radii.z());
+  for (int j = 0; j < rings; ++j) {
+    const double phi = kPi * (j + 1) / n;
+    for (int i = 0; i < slices; ++i) {
+      const double th = 2 * kPi * i / slices;
+      m.nodes.col(1 + j * slices + i) =
+          centre + radii.cwiseProduct(Vec3(std::sin(phi) * std::cos(th),
+                                           std::sin(phi) * std::sin(th), std::cos(phi)));
+    }
+  }
+  const int south = 1 + rings * slices;
+  m.nodes.col(south) = centre - Vec3(0, 0, radii.z());
+  auto v = [&](int j, int i) { return 1 + j * slices + (i % slices); };
+  for (int i = 0; i < slices; ++i) m.tris.push_back({0, v(0, i), v(0, i + 1)});
+  for (int j = 0; j + 1 < rings; ++j) {
+    for (int i = 0; i < slices; ++i) {
+      m.tris.push_back({v(j, i), v(j + 1, i), v(j + 1, i + 1)});
+      m.tris.push_back({v(j, i), v(j + 1, i + 1), v(j, i + 1)});
+    }
+  }
+  for (int i = 0; i < slices; ++i) m.tris.push_back({south, v(rings - 1, i + 1), v(rings - 1, i)});
+  return m;
+}
+
 State MakeSyntheticScene(const SyntheticSceneSize& size, Model* model) {
   *model = Model{};
   model->name = "synthetic_shoulder";
@@ -98,10 +97,10 @@ State MakeSyntheticScene(const SyntheticSceneSize& size, Model* model) {
 
   BoneModel humerus;
   humerus.name = "humerus";
-  humerus.surface = Ellipsoid(head, Vec3(head_r, head_r, head_r), size.bone_subdivisions);
+  humerus.surface = UvEllipsoid(head, Vec3(head_r, head_r, head_r), size.bone_subdivisions);
   BoneModel acromion;
   acromion.name = "acromion";
-  acromion.surface = Ellipsoid(Vec3(-4, 6, 36), Vec3(22, 12, 5), size.bone_subdivisions);
+  acromion.surface = UvEllipsoid(Vec3(-4, 6, 36), Vec3(22, 12, 5), size.bone_subdivisions);
   model->bones = {humerus, acromion};
 
   SoftBodyModel tendon;

@@ -11,6 +11,18 @@ namespace {
 
 stbtt_fontinfo* Info(void* p) { return static_cast<stbtt_fontinfo*>(p); }
 
+// Moves the pen past byte i of text at scale s: its advance, then the kerning toward the next.
+void AdvancePen(void* info, const std::string& text, std::size_t i, float s, float* pen) {
+  const int cp = static_cast<unsigned char>(text[i]);
+  int advance, lsb;
+  stbtt_GetCodepointHMetrics(Info(info), cp, &advance, &lsb);
+  *pen += advance * s;
+  if (i + 1 < text.size()) {
+    *pen +=
+        s * stbtt_GetCodepointKernAdvance(Info(info), cp, static_cast<unsigned char>(text[i + 1]));
+  }
+}
+
 }  // namespace
 
 Font::Font(const std::string& path) {
@@ -59,16 +71,7 @@ const Font::Glyph& Font::GetGlyph(int codepoint, int px) {
 int Font::TextWidth(const std::string& text, int px) {
   const float s = Scale(px);
   float pen = 0;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const int cp = static_cast<unsigned char>(text[i]);
-    int advance, lsb;
-    stbtt_GetCodepointHMetrics(Info(info_), cp, &advance, &lsb);
-    pen += advance * s;
-    if (i + 1 < text.size()) {
-      pen += s * stbtt_GetCodepointKernAdvance(Info(info_), cp,
-                                               static_cast<unsigned char>(text[i + 1]));
-    }
-  }
+  for (std::size_t i = 0; i < text.size(); ++i) AdvancePen(info_, text, i, s, &pen);
   return static_cast<int>(std::ceil(pen));
 }
 
@@ -97,13 +100,7 @@ void Font::Blend(const std::string& text, int x, int y, int px, const std::uint8
           p[k] = static_cast<std::uint8_t>((rgb[k] * a + p[k] * (255 - a) + 127) / 255);
       }
     }
-    int advance, lsb;
-    stbtt_GetCodepointHMetrics(Info(info_), cp, &advance, &lsb);
-    pen += advance * s;
-    if (i + 1 < text.size()) {
-      pen += s * stbtt_GetCodepointKernAdvance(Info(info_), cp,
-                                               static_cast<unsigned char>(text[i + 1]));
-    }
+    AdvancePen(info_, text, i, s, &pen);
   }
 }
 

@@ -20,14 +20,9 @@ namespace {
 
 using testing::kPi;
 using testing::MakeTestScene;
+using testing::SharedRenderer;
 
 constexpr double kMaxClippedShare = 0.02;
-
-Renderer& SharedRenderer() {
-  testing::PinLlvmpipeThreads();
-  static Renderer renderer;
-  return renderer;
-}
 
 ViewSpec Spec(View view, int w, int h) {
   ViewSpec s;

@@ -14,17 +14,12 @@ namespace {
 
 using testing::kPi;
 using testing::MakeTestScene;
+using testing::SharedRenderer;
 using testing::ToolPose;
 
 // Golden images differ from a fresh render only by rasteriser rounding (other CPUs / LLVM
 // builds); a moved object or changed colour drops PSNR far below this.
 constexpr double kGoldenMinPsnrDb = 40.0;
-
-Renderer& SharedRenderer() {
-  testing::PinLlvmpipeThreads();
-  static Renderer renderer;
-  return renderer;
-}
 
 // Distance of pixel (x, y) (top-down) from the centre of a w x h viewport, in pixels.
 double CentreDistance(int x, int y, int w, int h, double* dx = nullptr, double* dy_up = nullptr) {

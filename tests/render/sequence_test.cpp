@@ -2,11 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "test_scene.h"
 
 namespace arthrosim::render {
 namespace {
 
+using testing::SharedRenderer;
 // Keeps every frame in memory.
 class MemorySink : public FrameSink {
  public:
@@ -30,19 +33,19 @@ std::vector<State> States(const Model& model, const State& base) {
   return out;
 }
 
-Renderer& SharedRenderer() {
-  testing::PinLlvmpipeThreads();
-  static Renderer renderer;
-  return renderer;
+// Render options for w x h frames, the rest default.
+RenderOptions Sized(int w, int h) {
+  RenderOptions opt;
+  opt.width = w;
+  opt.height = h;
+  return opt;
 }
 
 TEST(SequenceRendererTest, SampleAndHoldAtTheFrameRate) {
   Model model;
   const State base = testing::MakeTestScene(&model);
   const std::vector<State> states = States(model, base);
-  RenderOptions opt;
-  opt.width = 48;
-  opt.height = 32;
+  RenderOptions opt = Sized(48, 32);
   opt.fps = 25;
   opt.frames_dir = "unused";  // allows any size; the sink is ours
   MemorySink sink;
@@ -70,9 +73,7 @@ TEST(SequenceRendererTest, SampleAndHoldAtTheFrameRate) {
 TEST(SequenceRendererTest, TimeWindowAndOverlayHook) {
   Model model;
   const State base = testing::MakeTestScene(&model);
-  RenderOptions opt;
-  opt.width = 32;
-  opt.height = 32;
+  RenderOptions opt = Sized(32, 32);
   opt.fps = 10;
   opt.from_s = 0.5;
   opt.to_s = 0.8;
@@ -92,9 +93,7 @@ TEST(SequenceRendererTest, TimeWindowAndOverlayHook) {
 TEST(SequenceRendererTest, RejectsNonIncreasingTimesAndBadOptions) {
   Model model;
   const State base = testing::MakeTestScene(&model);
-  RenderOptions opt;
-  opt.width = 32;
-  opt.height = 32;
+  RenderOptions opt = Sized(32, 32);
   MemorySink sink;
   SequenceRenderer seq(model, opt, &SharedRenderer(), &sink);
   seq.Push(base);
@@ -108,6 +107,26 @@ TEST(SequenceRendererTest, RejectsNonIncreasingTimesAndBadOptions) {
   EXPECT_NO_THROW(ValidateRenderOptions(opt));
   opt.to_s = -1;
   EXPECT_THROW(ValidateRenderOptions(opt), std::invalid_argument);
+}
+
+// The video names the step that started last, "in progress" until it ends, "done" after; nothing
+// before the first step, and a step that never started is never named.
+TEST(SequenceRendererTest, StepOverlayTextNamesTheCurrentStep) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<StepSpan> steps = {
+      {"Look", 1.0, 3.0}, {"Cut", 4.0, 6.0}, {"Never", nan, nan}, {"Burr", 5.0, nan}};
+  const auto at = [&](double t) {
+    Overlay o;
+    StepOverlayText(steps, t, &o);
+    return o.plan_step + " | " + o.verdict;
+  };
+  EXPECT_EQ(at(0.5), " | ");
+  EXPECT_EQ(at(1.0), "step 1/4: Look | in progress");
+  EXPECT_EQ(at(3.0), "step 1/4: Look | done");
+  EXPECT_EQ(at(4.5), "step 2/4: Cut | in progress");
+  // Burr starts while Cut is still running: the later start is the current step.
+  EXPECT_EQ(at(5.5), "step 4/4: Burr | in progress");
+  EXPECT_EQ(at(100), "step 4/4: Burr | in progress");
 }
 
 }  // namespace

@@ -7,7 +7,9 @@
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/render/renderer.h"
 #include "arthrosim/render/scene.h"
+#include "arthrosim/render/synthetic_scene.h"
 
 namespace arthrosim::render::testing {
 
@@ -16,32 +18,16 @@ inline constexpr double kPi = std::numbers::pi;
 /// Pins llvmpipe's rasteriser threads before the first context (deterministic images).
 inline void PinLlvmpipeThreads() { setenv("LP_NUM_THREADS", "2", 1); }
 
+/// One renderer (one OSMesa context) for every render test of the process, made on first use.
+inline Renderer& SharedRenderer() {
+  PinLlvmpipeThreads();
+  static Renderer renderer;
+  return renderer;
+}
+
 /// Closed UV sphere, outward.
 inline mesh::TriMesh UvSphere(const Vec3& c, double r, int n) {
-  mesh::TriMesh m;
-  const int slices = 2 * n, rings = n - 1;
-  m.nodes.resize(3, 2 + rings * slices);
-  m.nodes.col(0) = c + Vec3(0, 0, r);
-  for (int j = 0; j < rings; ++j) {
-    const double phi = kPi * (j + 1) / n;
-    for (int i = 0; i < slices; ++i) {
-      const double th = 2 * kPi * i / slices;
-      m.nodes.col(1 + j * slices + i) =
-          c + r * Vec3(std::sin(phi) * std::cos(th), std::sin(phi) * std::sin(th), std::cos(phi));
-    }
-  }
-  const int south = 1 + rings * slices;
-  m.nodes.col(south) = c - Vec3(0, 0, r);
-  auto v = [&](int j, int i) { return 1 + j * slices + (i % slices); };
-  for (int i = 0; i < slices; ++i) m.tris.push_back({0, v(0, i), v(0, i + 1)});
-  for (int j = 0; j + 1 < rings; ++j) {
-    for (int i = 0; i < slices; ++i) {
-      m.tris.push_back({v(j, i), v(j + 1, i), v(j + 1, i + 1)});
-      m.tris.push_back({v(j, i), v(j + 1, i + 1), v(j, i + 1)});
-    }
-  }
-  for (int i = 0; i < slices; ++i) m.tris.push_back({south, v(rings - 1, i + 1), v(rings - 1, i)});
-  return m;
+  return UvEllipsoid(c, Vec3(r, r, r), n);
 }
 
 /// A cube [lo, lo + edge]^3 cut into 5 positive tets.
@@ -59,6 +45,14 @@ inline mesh::TetMesh FiveTetCube(const Vec3& lo, double edge) {
       std::swap(t[2], t[3]);
     }
   }
+  return m;
+}
+
+/// An instrument named `name` of `kind`, its shape the default.
+inline InstrumentModel NamedInstrument(const char* name, InstrumentKind kind) {
+  InstrumentModel m;
+  m.name = name;
+  m.kind = kind;
   return m;
 }
 
@@ -90,16 +84,11 @@ inline State MakeTestScene(Model* model) {
     if (i > 0) thread.initial.edges.push_back({i - 1, i});
   }
   model->threads = {thread};
-  InstrumentModel grasper;
-  grasper.name = "grasper";
-  grasper.kind = InstrumentKind::kGrasper;
-  InstrumentModel burr;
-  burr.name = "burr";
-  burr.kind = InstrumentKind::kBurr;
+  InstrumentModel burr = NamedInstrument("burr", InstrumentKind::kBurr);
   burr.shaft_diameter_mm = 2.0;
   burr.tip_radius_mm = 3.0;
   burr.tip_length_mm = 6.0;
-  model->instruments = {grasper, burr};
+  model->instruments = {NamedInstrument("grasper", InstrumentKind::kGrasper), burr};
   model->camera.initial_pose =
       AimScope(Vec3(0, -15, 28), Vec3(0, 0, 8), Vec3::UnitZ(), 30 * kPi / 180);
   State state = MakeInitialState(*model);

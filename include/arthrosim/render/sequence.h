@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
@@ -38,6 +39,19 @@ std::unique_ptr<FrameSink> MakeSink(const RenderOptions& options, const std::str
 
 /// Text for the overlay's plan step and verdict at a state (scoring plugs in here).
 using OverlayTextFn = std::function<void(const State&, Overlay*)>;
+
+/// One procedure step as the video's overlay names it: its title and when it ran, s (start NaN =
+/// never started; end NaN = never completed).
+struct StepSpan {
+  std::string title;
+  double start_s = 0, end_s = 0;
+};
+
+/// The overlay text at time `t_s`: the step that started last at or before `t_s` as
+/// "step i/N: title" in `plan_step`, and in `verdict` "in progress" before its end and "done"
+/// from its end on (a step that never ends stays "in progress"). Before the first start both
+/// stay empty. Ties in start time go to the later step of the list.
+void StepOverlayText(const std::vector<StepSpan>& steps, double t_s, Overlay* overlay);
 
 /// Streams states into frames. Push states in strictly increasing time_s, then Finish.
 class SequenceRenderer {

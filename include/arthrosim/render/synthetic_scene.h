@@ -15,6 +15,10 @@ struct SyntheticSceneSize {
   int tendon_cells_z = 2;
 };
 
+/// A closed UV ellipsoid around `centre` with semi-axes `radii` (mm), triangles facing out: two
+/// poles and n - 1 rings of 2n vertices.
+mesh::TriMesh UvEllipsoid(const Vec3& centre, const Vec3& radii, int n);
+
 /// Fills `model` and returns its initial State with tools inserted (slot 0 grasper).
 /// Default size: ~6 000 bone triangles and 3 300 tets.
 State MakeSyntheticScene(const SyntheticSceneSize& size, Model* model);
