@@ -7,6 +7,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "arthrosim/core/enum_names.h"
+
 namespace arthrosim::instruments {
 namespace {
 
@@ -135,21 +137,13 @@ bool Nugatory(const std::vector<GaussEntry>& code, int k) {
 }  // namespace
 
 const char* KnotTypeName(KnotType type) {
-  switch (type) {
-    case KnotType::kNone:
-      return "none";
-    case KnotType::kHalfHitch:
-      return "half_hitch";
-    case KnotType::kGranny:
-      return "granny";
-    case KnotType::kSquare:
-      return "square";
-    case KnotType::kHalfHitches:
-      return "half_hitches";
-    case KnotType::kUnknown:
-      return "unknown";
-  }
-  return "unknown";
+  static constexpr EnumName<KnotType> kNames[] = {{KnotType::kNone, "none"},
+                                                  {KnotType::kHalfHitch, "half_hitch"},
+                                                  {KnotType::kGranny, "granny"},
+                                                  {KnotType::kSquare, "square"},
+                                                  {KnotType::kHalfHitches, "half_hitches"},
+                                                  {KnotType::kUnknown, "unknown"}};
+  return NameIn(kNames, type, "unknown");
 }
 
 std::vector<Vec3> CloseStrand(const std::vector<Vec3>& strand) {

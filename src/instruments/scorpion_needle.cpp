@@ -2,6 +2,7 @@
 // the jaws and ties the nearest thread node to the tool; button 2, with both held and the tool on
 // the tissue, passes the thread through along the penetration path (the centres of the surface
 // triangles nearest the two jaw tips) and stitches the nodes inside to the tissue.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -46,8 +47,9 @@ void JawTips(const Model& model, const ToolState& tool, Vec3* upper, Vec3* lower
   }
 }
 
-// Button 1, tissue: grasp what lies between the jaws; release beyond Dist_limit_2 or when
-// button 1 is let go.
+// Button 1, tissue: grasp what lies between the jaws once they are closed to grasp_jaw (not
+// while they are slid open around the tissue); release beyond Dist_limit_2 or when button 1 is
+// let go.
 void HoldTissue(const Model& model, int slot, const StepContext& context, State* state) {
   const ScorpionNeedleOptions& opt = model.operations.scorpion_needle;
   const ToolState& tool = state->tools[static_cast<std::size_t>(slot)];
@@ -58,7 +60,7 @@ void HoldTissue(const Model& model, int slot, const StepContext& context, State*
       return Release(model, slot, held, "distance", state);
     return;
   }
-  if (!Button1(tool) || context.world == nullptr) return;
+  if (!Button1(tool) || tool.jaw < opt.grasp_jaw || context.world == nullptr) return;
   Vec3 upper = Vec3::Zero(), lower = Vec3::Zero();
   JawTips(model, tool, &upper, &lower);
   SurfacePoint best;
@@ -195,6 +197,18 @@ void PassThread(const Model& model, int slot, const StepContext& context, State*
                                : Vec3(exit + (j - through) * opt.node_spacing_mm * dir);
     th.v.col(n).setZero();
   }
+  // The limb behind the held node follows it to the entry (each node drawn to within a rest
+  // segment of the next, toward the anchor or fixed end), so the pass stretches no segment.
+  for (int n = held - step; n >= 0 && n < count; n -= step) {
+    if (std::binary_search(model.threads[static_cast<std::size_t>(thread)].fixed_nodes.begin(),
+                           model.threads[static_cast<std::size_t>(thread)].fixed_nodes.end(), n))
+      break;
+    const Vec3 next = th.x.col(n + step);
+    const Vec3 d = th.x.col(n) - next;
+    if (d.norm() <= rest) break;
+    th.x.col(n) = next + d * (rest / d.norm());
+    th.v.col(n).setZero();
+  }
   for (int j = 0; j <= through; ++j) {
     SpringConstraint c;
     c.tag = kStitchTag;
@@ -211,12 +225,15 @@ void PassThread(const Model& model, int slot, const StepContext& context, State*
   }
   const double edge_mm = DistanceToTendonEdge(model, *state, body, entry);
   char detail[320];
-  std::snprintf(detail, sizeof detail,
-                "thread=%s entry_node=%d exit_node=%d entry_mm=%s exit_mm=%s stitches=%d%s",
-                model.threads[static_cast<std::size_t>(thread)].name.c_str(), held,
-                held + step * through, FormatPoint(entry).c_str(), FormatPoint(exit).c_str(),
-                through + 1,
-                edge_mm >= 0 ? (" bite_to_edge_mm=" + std::to_string(edge_mm)).c_str() : "");
+  std::snprintf(
+      detail, sizeof detail,
+      "thread=%s entry_node=%d exit_node=%d entry_mm=%s exit_mm=%s stitches=%d%s",
+      model.threads[static_cast<std::size_t>(thread)].name.c_str(), held, held + step * through,
+      FormatPoint(entry).c_str(), FormatPoint(exit).c_str(), through + 1,
+      edge_mm >= 0
+          ? (" bite_to_edge_mm=" + std::to_string(edge_mm) + " bite_mm=" + std::to_string(edge_mm))
+                .c_str()
+          : "");
   RecordEvent(model, slot, "suture_pass", model.soft_bodies[static_cast<std::size_t>(body)].name,
               detail, entry, state);
 }
@@ -227,7 +244,11 @@ void ScorpionNeedleOperation(const Model& model, int slot, const StepContext& co
                              InstrumentScratch* /*scratch*/) {
   HoldThread(model, slot, state);
   HoldTissue(model, slot, context, state);
-  if (Button2(state->tools[static_cast<std::size_t>(slot)]))
+  // One pass per press of button 2 (it goes down this step): a press held over several steps
+  // must not load the limb's free end again and pass it a second time once the tissue slips.
+  const bool was_down = context.prev_tools != nullptr &&
+                        Button2((*context.prev_tools)[static_cast<std::size_t>(slot)]);
+  if (Button2(state->tools[static_cast<std::size_t>(slot)]) && !was_down)
     PassThread(model, slot, context, state);
 }
 

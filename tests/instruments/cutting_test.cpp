@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "../collision/clip_reference.h"
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/physics/constraints.h"
 #include "arthrosim/sim/step.h"
@@ -21,30 +22,12 @@ using testing::DetailNumber;
 using testing::EventsOf;
 using testing::GridMesh;
 using testing::GridModel;
+using testing::SceneRun;
 using testing::ToolInput;
 
-// Independent reference for "the triangle crosses the tet": clip the triangle by the tet's four
-// half-spaces and see whether anything is left.
+// Independent reference for "the triangle crosses the tet".
 bool Crosses(const std::array<Vec3, 3>& tri, const std::array<Vec3, 4>& p) {
-  std::vector<Vec3> poly(tri.begin(), tri.end());
-  const Vec3 centroid = 0.25 * (p[0] + p[1] + p[2] + p[3]);
-  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-  for (const auto& f : kFaces) {
-    Vec3 n = (p[f[1]] - p[f[0]]).cross(p[f[2]] - p[f[0]]);
-    if (n.dot(centroid - p[f[0]]) < 0) n = -n;
-    const double off = n.dot(p[f[0]]);
-    std::vector<Vec3> out;
-    for (std::size_t i = 0; i < poly.size(); ++i) {
-      const Vec3& s = poly[i];
-      const Vec3& e = poly[(i + 1) % poly.size()];
-      const double ds = n.dot(s) - off, de = n.dot(e) - off;
-      if (ds >= 0) out.push_back(s);
-      if ((ds >= 0) != (de >= 0)) out.push_back(s + (e - s) * (ds / (ds - de)));
-    }
-    poly = out;
-    if (poly.empty()) return false;
-  }
-  return true;
+  return collision::testing::ClipReference(tri[0], tri[1], tri[2], p);
 }
 
 std::array<Vec3, 4> TetAt(const SoftBodyState& b, std::size_t t) {
@@ -67,9 +50,8 @@ struct BarScene {
 TEST(ScissorsCut, RemovesOnlyTetsTheBladeTriangleCrossesAndCutsTheBarInTwo) {
   BarScene scene;
   const Model& m = scene.model;
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   sim::Step(m, scene.Scissors(0.0), &s, &ws);  // open, in place: no cut
   EXPECT_TRUE(EventsOf(s, "cut").empty());
   ASSERT_EQ(AliveComponents(s, 0), 1);
@@ -109,18 +91,16 @@ TEST(ScissorsCut, RemovesOnlyTetsTheBladeTriangleCrossesAndCutsTheBarInTwo) {
 TEST(ScissorsCut, NothingHappensWithoutClosingOrWithoutTouching) {
   BarScene scene;
   const Model& m = scene.model;
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   // The jaw held at 0.5 (not closing) in place: contacts but no cut.
   for (int k = 0; k < 5; ++k) sim::Step(m, scene.Scissors(0.5), &s, &ws);
   EXPECT_EQ(AliveRestVolume(s, 0), AliveRestVolume(MakeInitialState(m), 0));
   // Closing far from the bar: no contact, no cut.
   InputFrame away =
       ToolInput(m, "scissors", Vec3(10.5, 0, 30), Vec3(0, 1, 0), Vec3(0, 0, -1), 0.0, 0);
-  State s2 = MakeInitialState(m);
-  sim::Workspace ws2;
-  sim::BuildWorkspace(m, s2, &ws2);
+  SceneRun run_s2(m);
+  auto& [s2, ws2] = run_s2;
   sim::Step(m, away, &s2, &ws2);
   away.tools[0].jaw = 0.5;
   sim::Step(m, away, &s2, &ws2);
@@ -135,9 +115,8 @@ TEST(ScissorsCut, NothingHappensWithoutClosingOrWithoutTouching) {
 TEST(ScissorsCut, ProgressiveCuttingOverOneHundredFiftySteps) {
   const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {66, 8, 1}, 1.0),
                             [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   const int steps = 150;
   int cut_steps = 0;
   double front = -1;  // largest x reached by a removed tet's centroid
@@ -174,9 +153,8 @@ State RunProgressive(int threads) {
   SetThreadCount(threads);
   const Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {30, 8, 1}, 1.0),
                             [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   for (int k = 0; k <= 40; ++k) {
     sim::Step(m,
               ToolInput(m, "scissors", Vec3(3.0 + 0.4 * k, 0.2, 0), Vec3(0, 0, 1), Vec3(1, 0, 0),
@@ -216,9 +194,8 @@ TEST(ScissorsSplit, CutsTheBarInTwoConservingVolumeWithValidElements) {
   BarScene scene;
   scene.model.operations.scissors.mode = CutMode::kSplit;
   const Model& m = scene.model;
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   sim::Step(m, scene.Scissors(0.0), &s, &ws);
   const double v0 = AliveRestVolume(s, 0);
   const std::size_t tets0 = s.soft_bodies[0].tets.size();
@@ -260,9 +237,8 @@ TEST(ScissorsSplit, RandomPlanesConserveVolumeAndOrientation) {
   };
   double worst = 1;
   for (int trial = 0; trial < 300; ++trial) {
-    State s = MakeInitialState(m);
-    sim::Workspace ws;
-    sim::BuildWorkspace(m, s, &ws);
+    SceneRun run(m);
+    auto& [s, ws] = run;
     const Vec3 normal = Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
     const Vec3 point(0.5 + 3 * uniform(), 0.5 + 3 * uniform(), 0.5 + 3 * uniform());
     // A triangle in that plane big enough to cover the grid.
@@ -359,16 +335,14 @@ TEST(ThreadCutter, BothSidesHeldKeepsBothStrands) {
 TEST(ThreadCutter, OnlyWhenTheBladesMeetAndOnlyThread) {
   CutterScene scene;
   const Model& m = scene.model;
-  State s = MakeInitialState(m);
-  sim::Workspace ws;
-  sim::BuildWorkspace(m, s, &ws);
+  SceneRun run(m);
+  auto& [s, ws] = run;
   // Closing but never past 0.9: no cut.
   for (double jaw : {0.0, 0.3, 0.6, 0.85, 0.89}) sim::Step(m, scene.Cutter(jaw), &s, &ws);
   for (std::uint8_t a : s.threads[0].node_alive) EXPECT_EQ(a, 1);
   // The scissors at the same place cut no thread.
-  State s2 = MakeInitialState(m);
-  sim::Workspace ws2;
-  sim::BuildWorkspace(m, s2, &ws2);
+  SceneRun run_s2(m);
+  auto& [s2, ws2] = run_s2;
   InputFrame in = scene.Cutter(0.8);
   in.tools[0].instrument = m.FindInstrument("scissors");
   sim::Step(m, in, &s2, &ws2);

@@ -27,13 +27,21 @@ void TakeHold(SlotDriver* d, const Vec3& at) {
   ASSERT_GE(GraspId(*d->state), 0);
 }
 
-TEST(Grasper, GraspedPointFollowsTheToolAndLetsGoWhenTheJawOpens) {
+// The grasper holding the slab's top face near its free end (TakeHold at `start`).
+class GrasperHolding : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    TakeHold(&d, start);
+    id = GraspId(s);
+  }
   const Model m = testing::SlabModel();
   State s = MakeInitialState(m);
-  SlotDriver d(m, &s, "grasper");
-  const Vec3 start(25, 10, 4.4);
-  TakeHold(&d, start);
-  const std::int64_t id = GraspId(s);
+  SlotDriver d{m, &s, "grasper"};
+  const Vec3 start{25, 10, 4.4};
+  std::int64_t id = -1;  ///< the grasp spring
+};
+
+TEST_F(GrasperHolding, GraspedPointFollowsTheToolAndLetsGoWhenTheJawOpens) {
   const Vec3 grasped0 = physics::EndPosition(s, physics::FindConstraint(s, id)->b);
   double worst_mm = 0;
   for (int k = 1; k <= 30; ++k) {  // lift 3 mm at 5 mm/s
@@ -54,13 +62,7 @@ TEST(Grasper, GraspedPointFollowsTheToolAndLetsGoWhenTheJawOpens) {
   EXPECT_TRUE(s.soft_bodies[0].x.allFinite());
 }
 
-TEST(Grasper, WithdrawingTheInstrumentReleasesItsHold) {
-  const Model m = testing::SlabModel();
-  State s = MakeInitialState(m);
-  SlotDriver d(m, &s, "grasper");
-  const Vec3 start(25, 10, 4.4);
-  TakeHold(&d, start);
-  const std::int64_t id = GraspId(s);
+TEST_F(GrasperHolding, WithdrawingTheInstrumentReleasesItsHold) {
   d.frame.tools[0].instrument = -1;  // withdrawn through its portal with the jaw still closed
   d.Step(start + Vec3(0, 0, 20), 1.0);
   EXPECT_EQ(physics::FindConstraint(s, id), nullptr) << "the tissue stays tied to an empty slot";
@@ -72,13 +74,7 @@ TEST(Grasper, WithdrawingTheInstrumentReleasesItsHold) {
   EXPECT_TRUE(s.soft_bodies[0].x.allFinite());
 }
 
-TEST(Grasper, ReleasesWhenTheStretchExceedsDistLimit) {
-  const Model m = testing::SlabModel();
-  State s = MakeInitialState(m);
-  SlotDriver d(m, &s, "grasper");
-  const Vec3 start(25, 10, 4.4);
-  TakeHold(&d, start);
-  const std::int64_t id = GraspId(s);
+TEST_F(GrasperHolding, ReleasesWhenTheStretchExceedsDistLimit) {
   // An 8 mm jerk along the slab in one step: its axial stiffness (about 16 N/mm) exceeds the
   // grasp spring's (5 N/mm), so the point cannot follow within Dist_Limit (2 mm).
   d.Step(start + Vec3(8, 0, 1), 1.0);
@@ -137,12 +133,7 @@ State GraspRun(const Model& m) {
 }
 
 TEST(Grasper, BitIdenticalForOneAndTwoThreads) {
-  const Model m = testing::SlabModel();
-  SetThreadCount(1);
-  const State a = GraspRun(m);
-  SetThreadCount(2);
-  const State b = GraspRun(m);
-  SetThreadCount(1);
+  const auto [a, b] = testing::RunWithOneAndTwoThreads(testing::SlabModel(), GraspRun);
   EXPECT_TRUE(BitwiseEqual(a, b));
 }
 

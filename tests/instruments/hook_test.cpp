@@ -14,13 +14,7 @@ using testing::SlotDriver;
 
 // Shaft down (tool +z = world -z), the hook's bend in the world y-z plane (tool x = world +y),
 // across the thread (which runs along x): its mouth then opens up and toward +y.
-Quat HookAcrossThread() {
-  Mat3 r;
-  r.col(0) = Vec3(0, 1, 0);
-  r.col(1) = Vec3(1, 0, 0);
-  r.col(2) = Vec3(0, 0, -1);
-  return Quat(r);
-}
+Quat HookAcrossThread() { return testing::ToolAxes(Vec3(0, 1, 0), Vec3(1, 0, 0), Vec3(0, 0, -1)); }
 
 std::int64_t HookId(const State& s) {
   const std::vector<std::int64_t> ids = physics::FindConstraintsByTag(s, "hook");
@@ -59,20 +53,37 @@ double WorstStrain(const State& s) {
   return worst;
 }
 
-TEST(Hook, PullsALoopOutByTheCommandedDistanceAndLetsGoWhenTurned) {
-  const Model m = testing::SlabModel();
-  State s = MakeInitialState(m);
-  // An assistant holds the free end (0.5 N/mm at its place), so the loop pulls on both limbs.
+// `s` with an assistant's spring (tag "assistant") holding the suture's free end (node 40) at its
+// place.
+State WithFreeEndHeld(State s, double stiffness_n_per_mm) {
   SpringConstraint assistant;
   assistant.tag = "assistant";
   assistant.a = physics::ThreadPointEnd(0, 40);
   assistant.b.kind = ConstraintEnd::Kind::kWorld;
   assistant.b.offset_mm = Vec3(46, 10, 8);
-  assistant.stiffness_n_per_mm = 0.5;
+  assistant.stiffness_n_per_mm = stiffness_n_per_mm;
   physics::AddConstraint(&s, assistant);
-  SlotDriver d(m, &s, "hook");
+  return s;
+}
+
+// The slab scene with the hook snagged on the suture (Snag; id -1 if it did not) while an
+// assistant holds the free end with the given stiffness.
+struct SnaggedHook {
+  explicit SnaggedHook(double assistant_n_per_mm)
+      : s(WithFreeEndHeld(MakeInitialState(m), assistant_n_per_mm)),
+        d(m, &s, "hook"),
+        id(Snag(&d, &seat_local)) {}
+  const Model m = testing::SlabModel();
+  State s;
+  SlotDriver d;
   Vec3 seat_local;
-  const std::int64_t id = Snag(&d, &seat_local);
+  std::int64_t id;
+};
+
+TEST(Hook, PullsALoopOutByTheCommandedDistanceAndLetsGoWhenTurned) {
+  // An assistant holds the free end (0.5 N/mm), so the loop pulls on both limbs.
+  SnaggedHook hook(0.5);
+  auto& [m, s, d, seat_local, id] = hook;
   ASSERT_GE(id, 0) << "the thread was snagged";
   const Event caught = d.Events("hook_catch")[0];
   EXPECT_EQ(caught.body, "suture");
@@ -111,19 +122,9 @@ TEST(Hook, PullsALoopOutByTheCommandedDistanceAndLetsGoWhenTurned) {
 }
 
 TEST(Hook, LetsGoWhenTheThreadSlipsBeyondTheLimit) {
-  const Model m = testing::SlabModel();
-  State s = MakeInitialState(m);
   // The free end held firmly (5 N/mm), so the thread cannot come along far.
-  SpringConstraint assistant;
-  assistant.tag = "assistant";
-  assistant.a = physics::ThreadPointEnd(0, 40);
-  assistant.b.kind = ConstraintEnd::Kind::kWorld;
-  assistant.b.offset_mm = Vec3(46, 10, 8);
-  assistant.stiffness_n_per_mm = 5;
-  physics::AddConstraint(&s, assistant);
-  SlotDriver d(m, &s, "hook");
-  Vec3 seat_local;
-  const std::int64_t id = Snag(&d, &seat_local);
+  SnaggedHook hook(5);
+  auto& [m, s, d, seat_local, id] = hook;
   ASSERT_GE(id, 0);
   // A 15 mm jerk up in one step: the loop would need 11.5 mm more thread, which the held end
   // gives only against tens of newtons (a 10 mm jerk leaves the thread 2.8 mm behind), so the

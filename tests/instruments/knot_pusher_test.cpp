@@ -27,22 +27,7 @@ constexpr int kEdgeNode = 447;   // slab node (30, 10, 4): top of the torn edge
 const Vec3 kTakeAt(35, 10, 29);  // where the two limbs pass 1 mm either side of the tool
 
 Model KnotModel(const std::string& knot_options = "") {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("arthrosim_knot_scene_" + std::to_string(getpid()));  // parallel test processes apart
-  std::filesystem::create_directories(dir);
-  { std::ofstream(dir / "slab.vtk") << testing::WriteSlabVtk(); }
-  const std::string yaml = R"(name: knot_slab
-seed: 1
-time: {dt: 0.02, duration: 1}
-gravity: [0, 0, 0]
-solver: {integrator: implicit_euler, cg_max_iterations: 200, cg_tolerance: 1.0e-8}
-output: {file: slab.h5, every: 1}
-materials:
-  tendon: {young_modulus: 2.0e5, poisson_ratio: 0.4, density: 1100, rayleigh_mass: 1, rayleigh_stiffness: 0.01}
-bodies:
-  - {name: tendon, kind: soft, mesh: slab.vtk, material: tendon, fixed: [slab_base]}
-  - name: suture_a
+  return testing::LoadSlabScenario("knot_slab", 2.0e5, R"(  - name: suture_a
     kind: thread
     thread: {start: [30, 9, 4], end: [42, 9, 64], nodes: 61, damping: 5}
   - name: suture_b
@@ -51,21 +36,12 @@ bodies:
   - name: suture_c
     kind: thread
     thread: {start: [38.6, 10, 4], end: [38.6, 10, 64], nodes: 61, damping: 5, fixed_nodes: [0]}
-regions:
-  - {name: slab_base, body: tendon, box: {min: [-1, -1, -1], max: [0.5, 21, 5]}}
-  - {name: tendon_edge, body: tendon, box: {min: [29.5, -1, -1], max: [31, 21, 5]}}
-portals:
-  - {name: lateral, position: [60, 10, 60]}
-instruments:
+)",
+                                   "[60, 10, 60]", R"(instruments:
   - {name: knot_pusher, kind: knot_pusher, portal: lateral, tip_length: 4, tip_radius: 1}
 camera: {portal: lateral, position: [50, 10, 40], look_at: [30, 10, 5]}
 operations:
-  knot_pusher: {)" + knot_options +
-                           R"(}
-)";
-  const std::string path = (dir / "knot.yaml").string();
-  { std::ofstream(path) << yaml; }
-  return io::LoadScenario(path);
+  knot_pusher: {)" + knot_options + "}\n");
 }
 
 // Suture A's first node is stitched to the slab edge (as a scorpion-needle pass leaves it).

@@ -10,8 +10,19 @@
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 #include "arthrosim/sim/step.h"
+#include "arthrosim/sim/workspace.h"
 
 namespace arthrosim::testing {
+
+/// A run of `model` from its initial State: the State and the Workspace built for it (bind them
+/// as `auto& [s, ws] = run;`).
+struct SceneRun {
+  explicit SceneRun(const Model& model) : s(MakeInitialState(model)) {
+    sim::BuildWorkspace(model, s, &ws);
+  }
+  State s;
+  sim::Workspace ws;
+};
 
 /// A box [lo, lo + n * cell] of n.x * n.y * n.z cubes of edge `cell` mm, 6 positive tets each.
 mesh::TetMesh GridMesh(const Vec3& lo, const std::array<int, 3>& n, double cell);

@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 
+#include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/physics/constraints.h"
 #include "suture_scene.h"
@@ -15,13 +16,7 @@ namespace {
 using testing::SlotDriver;
 
 // Horizontal, pointing -x (toward the slab from its free edge), upper jaw (side 0) up.
-Quat TowardMinusX() {
-  Mat3 r;
-  r.col(0) = Vec3(0, 0, 1);
-  r.col(1) = Vec3(0, 1, 0);
-  r.col(2) = Vec3(-1, 0, 0);
-  return Quat(r);
-}
+Quat TowardMinusX() { return testing::ToolAxes(Vec3(0, 0, 1), Vec3(0, 1, 0), Vec3(-1, 0, 0)); }
 
 constexpr std::uint8_t kB1 = 1, kB2 = 2;
 
@@ -94,6 +89,12 @@ TEST(ScorpionNeedle, PassPlacesTheNodesAsThePaperSays) {
     EXPECT_NEAR(seg.norm(), 1.0, 1e-9) << "node " << n;
     EXPECT_GT(seg.normalized().dot(dir), 1 - 1e-9) << "node " << n;
   }
+  // The pass stretches no segment of the thread (the limb behind the entry follows it); the
+  // first segment, at the fixed end, was drawn taut by the tool carrying the limb before.
+  const Points& x0 = m.threads[0].initial.nodes;
+  for (int n = 2; n < x.cols(); ++n)
+    EXPECT_LE((x.col(n) - x.col(n - 1)).norm(), 1.01 * (x0.col(n) - x0.col(n - 1)).norm())
+        << "segment " << n;
   // One stitch spring per node inside the tissue, the tool no longer holds the thread.
   EXPECT_EQ(physics::FindConstraintsByTag(s, "stitch").size(),
             static_cast<std::size_t>(exit - entry + 1));
@@ -164,6 +165,50 @@ TEST(ScorpionNeedle, StitchesHoldAsTheTendonMovesAndNothingDiverges) {
   EXPECT_LE(worst_strain, 0.01);
 }
 
+// Jaws slid a third open round the slab's free edge with button 1 held (loading the thread):
+// they touch it on the way in. Returns the grasps made on the way in; `closed_grasps` those made
+// once the jaws close to 0.5 there.
+int GraspsDuringApproach(const Model& m, int* closed_grasps) {
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  d.frame.tools[0].pose.orientation = TowardMinusX();
+  int open = 0;
+  *closed_grasps = 0;
+  const auto count = [&](int* into) {
+    for (const Event& e : s.events) *into += e.kind == "grasp" ? 1 : 0;
+  };
+  d.Step(Vec3(33, 10, 8), 0.3, kB1);  // the thread at the tip is caught
+  for (int k = 1; k <= 12; ++k) d.Step(Vec3(33, 10, 8 - 0.5 * k), 0.3, kB1), count(&open);
+  bool touched = false;
+  for (int k = 1; k <= 12; ++k) {
+    d.Step(Vec3(33 - 0.5 * k, 10, 2), 0.3, kB1), count(&open);
+    for (const physics::PointContact& c : d.ws.contacts.contacts)
+      touched = touched || (c.tool_slot == 0 && c.force_n > 0);
+  }
+  EXPECT_TRUE(touched) << "the open jaws touch the slab on the way in";
+  for (int k = 1; k <= 5; ++k) d.Step(Vec3(27, 10, 2), 0.3 + 0.04 * k, kB1), count(closed_grasps);
+  return open;
+}
+
+TEST(ScorpionNeedle, OpenJawsSlidRoundTheTissueDoNotGraspIt) {
+  int closed = 0;
+  EXPECT_EQ(GraspsDuringApproach(testing::SlabModel(), &closed), 0);
+  EXPECT_EQ(closed, 1);
+  // With grasp_jaw 0 (any jaw) the tissue is taken on the way in, before the jaws close.
+  EXPECT_EQ(GraspsDuringApproach(
+                testing::SlabModel("operations: {scorpion_needle: {grasp_jaw: 0}}\n"), &closed),
+            1);
+  EXPECT_EQ(closed, 0);
+}
+
+TEST(ScorpionNeedle, ReadsGraspJaw) {
+  EXPECT_DOUBLE_EQ(testing::SlabModel().operations.scorpion_needle.grasp_jaw, 0.35);
+  EXPECT_DOUBLE_EQ(testing::SlabModel("operations: {scorpion_needle: {grasp_jaw: 0.6}}\n")
+                       .operations.scorpion_needle.grasp_jaw,
+                   0.6);
+  EXPECT_THROW(testing::SlabModel("operations: {scorpion_needle: {grasp_jaw: 1.5}}\n"), InputError);
+}
+
 State SutureRun(const Model& m) {
   State s = MakeInitialState(m);
   SlotDriver d(m, &s, "scorpion_needle");
@@ -174,12 +219,7 @@ State SutureRun(const Model& m) {
 }
 
 TEST(ScorpionNeedle, BitIdenticalForOneAndTwoThreads) {
-  const Model m = testing::SlabModel();
-  SetThreadCount(1);
-  const State a = SutureRun(m);
-  SetThreadCount(2);
-  const State b = SutureRun(m);
-  SetThreadCount(1);
+  const auto [a, b] = testing::RunWithOneAndTwoThreads(testing::SlabModel(), SutureRun);
   EXPECT_TRUE(BitwiseEqual(a, b));
   EXPECT_FALSE(physics::FindConstraintsByTag(a, "stitch").empty());
 }

@@ -13,8 +13,10 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "arthrosim/core/parallel.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
 
@@ -57,17 +59,20 @@ inline std::string WriteSlabVtk() {
   return s.str();
 }
 
-/// The slab scene; `extra` is appended to the YAML (e.g. an `operations:` section). The slab's
-/// Young's modulus (Pa): stiff enough by default that a jerk outruns a grasp; 2 linear tets
-/// through its thickness make it far stiffer in bending than the beam formula says.
-inline Model SlabModel(const std::string& extra = "", double young_modulus_pa = 5e6) {
+/// A slab scenario named `name` in a temporary folder of its own: the slab tendon (Young's
+/// modulus in Pa) fixed at x = 0 with its torn edge region, the thread bodies `threads` (YAML
+/// list entries), the lateral portal at `portal` ("[x, y, z]"), then `rest` (instruments,
+/// camera and any further sections) as written.
+inline Model LoadSlabScenario(const std::string& name, double young_modulus_pa,
+                              const std::string& threads, const std::string& portal,
+                              const std::string& rest) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() /
-      ("arthrosim_suture_scene_" + std::to_string(getpid()));  // parallel test processes apart
+      ("arthrosim_" + name + "_" + std::to_string(getpid()));  // parallel test processes apart
   std::filesystem::create_directories(dir);
   { std::ofstream(dir / "slab.vtk") << WriteSlabVtk(); }
   const std::string yaml =
-      R"(name: suture_slab
+      "name: " + name + R"(
 seed: 1
 time: {dt: 0.02, duration: 1}
 gravity: [0, 0, 0]
@@ -79,24 +84,56 @@ materials:
       R"(, poisson_ratio: 0.4, density: 1100, rayleigh_mass: 1, rayleigh_stiffness: 0.01}
 bodies:
   - {name: tendon, kind: soft, mesh: slab.vtk, material: tendon, fixed: [slab_base]}
-  - name: suture
-    kind: thread
-    thread: {start: [6, 10, 8], end: [46, 10, 8], nodes: 41, damping: 5, fixed_nodes: [0]}
-regions:
+)" + threads +
+      R"(regions:
   - {name: slab_base, body: tendon, box: {min: [-1, -1, -1], max: [0.5, 21, 5]}}
   - {name: tendon_edge, body: tendon, box: {min: [29.5, -1, -1], max: [31, 21, 5]}}
 portals:
-  - {name: lateral, position: [60, 10, 30]}
-instruments:
+  - {name: lateral, position: )" +
+      portal + "}\n" + rest;
+  const std::string path = (dir / "slab.yaml").string();
+  { std::ofstream(path) << yaml; }
+  return io::LoadScenario(path);
+}
+
+/// The slab scene; `extra` is appended to the YAML (e.g. an `operations:` section). The slab's
+/// Young's modulus (Pa): stiff enough by default that a jerk outruns a grasp; 2 linear tets
+/// through its thickness make it far stiffer in bending than the beam formula says.
+inline Model SlabModel(const std::string& extra = "", double young_modulus_pa = 5e6) {
+  return LoadSlabScenario("suture_slab", young_modulus_pa,
+                          R"(  - name: suture
+    kind: thread
+    thread: {start: [6, 10, 8], end: [46, 10, 8], nodes: 41, damping: 5, fixed_nodes: [0]}
+)",
+                          "[60, 10, 30]", R"(instruments:
   - {name: grasper, kind: grasper, portal: lateral}
   - {name: retriever, kind: retriever, portal: lateral}
   - {name: scorpion_needle, kind: scorpion_needle, portal: lateral, tip_length: 8}
   - {name: hook, kind: hook, portal: lateral}
 camera: {portal: lateral, position: [50, 10, 20], look_at: [10, 10, 5]}
-)" + extra;
-  const std::string path = (dir / "slab.yaml").string();
-  { std::ofstream(path) << yaml; }
-  return io::LoadScenario(path);
+)" + extra);
+}
+
+/// The orientation whose tool x, y and z axes point along the world directions given (an
+/// orthonormal right-handed set).
+inline Quat ToolAxes(const Vec3& x, const Vec3& y, const Vec3& z) {
+  Mat3 r;
+  r.col(0) = x;
+  r.col(1) = y;
+  r.col(2) = z;
+  return Quat(r);
+}
+
+/// The States `run(model)` ends in with one worker thread and with two; the thread count is one
+/// again afterwards.
+template <class Run>
+std::pair<State, State> RunWithOneAndTwoThreads(const Model& model, Run run) {
+  SetThreadCount(1);
+  State one = run(model);
+  SetThreadCount(2);
+  State two = run(model);
+  SetThreadCount(1);
+  return {std::move(one), std::move(two)};
 }
 
 /// Pointing straight down (tool +z = world -z), jaws opening along world x.
