@@ -7,13 +7,16 @@
 #include <cmath>
 #include <cstring>
 
+#include "arthrosim/core/enum_names.h"
 #include "arthrosim/core/error.h"
 
 namespace arthrosim::scoring {
 namespace {
 
-const SeriesClass kClasses[] = {SeriesClass::kExact,    SeriesClass::kHash,  SeriesClass::kText,
-                                SeriesClass::kPosition, SeriesClass::kForce, SeriesClass::kMetric};
+constexpr EnumName<SeriesClass> kClassNames[] = {
+    {SeriesClass::kExact, "exact"}, {SeriesClass::kHash, "hash"},
+    {SeriesClass::kText, "text"},   {SeriesClass::kPosition, "position"},
+    {SeriesClass::kForce, "force"}, {SeriesClass::kMetric, "metric"}};
 
 bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
@@ -125,22 +128,10 @@ Tolerance ReadTolerance(const std::string& path, const YAML::Node& n, const std:
 
 }  // namespace
 
-const char* SeriesClassName(SeriesClass c) {
-  switch (c) {
-    case SeriesClass::kExact:
-      return "exact";
-    case SeriesClass::kHash:
-      return "hash";
-    case SeriesClass::kText:
-      return "text";
-    case SeriesClass::kPosition:
-      return "position";
-    case SeriesClass::kForce:
-      return "force";
-    case SeriesClass::kMetric:
-      return "metric";
-  }
-  return "?";
+const char* SeriesClassName(SeriesClass c) { return NameIn(kClassNames, c, "?"); }
+
+std::optional<SeriesClass> ParseSeriesClass(std::string_view name) {
+  return ValueIn(kClassNames, name);
 }
 
 CompareOptions CompareOptions::Defaults() {
@@ -165,15 +156,12 @@ CompareOptions LoadTolerances(const std::string& path) {
   for (auto it = doc.begin(); it != doc.end(); ++it) {
     const std::string key = it->first.as<std::string>();
     const int line = it->first.Mark().line + 1;
-    bool known = false;
-    for (SeriesClass c : kClasses) {
-      if (key != SeriesClassName(c)) continue;
+    if (const std::optional<SeriesClass> c = ParseSeriesClass(key)) {
       if (c == SeriesClass::kExact || c == SeriesClass::kHash || c == SeriesClass::kText)
         throw InputError(path, line, key, "exact classes take no tolerance");
-      o.by_class[c] = ReadTolerance(path, it->second, key);
-      known = true;
+      o.by_class[*c] = ReadTolerance(path, it->second, key);
+      continue;
     }
-    if (known) continue;
     if (key == "nan") {
       const std::string v = it->second.IsScalar() ? it->second.Scalar() : "";
       if (v == "same_place")

@@ -251,9 +251,7 @@ Digest ReadGolden(const std::string& path) {
       DigestSeries& s = d.series[order];
       s.name = g.AttrString("name");
       const std::string cls = g.AttrString("class");
-      for (SeriesClass c : {SeriesClass::kExact, SeriesClass::kHash, SeriesClass::kText,
-                            SeriesClass::kPosition, SeriesClass::kForce, SeriesClass::kMetric})
-        if (cls == SeriesClassName(c)) s.cls = c;
+      if (const std::optional<SeriesClass> c = ParseSeriesClass(cls)) s.cls = *c;
       s.width = static_cast<int>(g.AttrInt("width"));
       s.steps = g.OpenDataset("steps").ReadAll<std::int64_t>();
       if (s.cls == SeriesClass::kHash) {

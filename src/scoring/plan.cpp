@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/input_file.h"
 #include "arthrosim/core/yaml_fields.h"
 
 namespace arthrosim::scoring {
@@ -291,11 +292,7 @@ Plan LoadPlanFromText(const std::string& text, const std::string& path, const Mo
 }
 
 Plan LoadPlan(const std::string& path, const Model* model) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot open the plan file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return LoadPlanFromText(text.str(), path, model);
+  return LoadPlanFromText(ReadInputFile(path, "", "cannot open the plan file"), path, model);
 }
 
 }  // namespace arthrosim::scoring

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "progress.h"
 #include "score_internal.h"
 
 namespace arthrosim::scoring::detail {
@@ -14,67 +15,27 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-bool Allowed(const PlanStep& step, const std::string& tool) {
-  return std::find(step.instruments.begin(), step.instruments.end(), tool) !=
-         step.instruments.end();
-}
-
 // Outcome of one criterion: when it was met (NaN if never) and, if not, why.
 struct CriterionOutcome {
   double time_s = kNaN;
   std::string why;
 };
 
-std::string RangeText(const Range& r) {
-  if (r.min && r.max) return fmt::format("{:g} to {:g}", *r.min, *r.max);
-  if (r.min) return fmt::format("at least {:g}", *r.min);
-  return fmt::format("at most {:g}", *r.max);
-}
-
-// Why an event of the right kind and instrument does not satisfy the criterion ("" if it does).
-std::string EventMismatch(const Model& model, const Criterion& c, const Event& e) {
-  if (!c.body.empty() && e.body != c.body)
-    return fmt::format("on '{}' instead of '{}'", e.body, c.body);
-  if (!c.landmark.empty() && c.within_mm > 0) {
-    const int l = model.FindLandmark(c.landmark);
-    const double d = l < 0 ? kNaN : (e.position_mm - model.landmarks[l].position_mm).norm();
-    if (!(d <= c.within_mm))
-      return fmt::format("{:.1f} mm from {} (allowed {:g} mm)", d, c.landmark, c.within_mm);
-  }
-  if (!c.region.empty() && !InRegionBox(model, c.region, e.position_mm))
-    return fmt::format("outside region {}", c.region);
-  for (const auto& [key, range] : c.detail) {
-    double v = 0;
-    if (!DetailValue(e.detail, key, &v)) return fmt::format("no {} in the event", key);
-    if (!range.Contains(v)) return fmt::format("{} = {:g}, expected {}", key, v, RangeText(range));
-  }
-  return "";
-}
-
 CriterionOutcome EventCriterion(const PlanStep& step, const Criterion& c, const RunData& run,
                                 const Event** used) {
+  CriterionProgress progress(step, c);
+  for (std::size_t i = 0; i < run.events.size() && !progress.met(); ++i)
+    progress.OnEvent(run.model, run.events[i], static_cast<std::int64_t>(i));
   CriterionOutcome out;
-  int matched = 0;
-  const Event* last_candidate = nullptr;
-  std::string last_why;
-  for (const Event& e : run.events) {
-    if (e.kind != c.event || !Allowed(step, e.tool)) continue;
-    last_candidate = &e;
-    last_why = EventMismatch(run.model, c, e);
-    if (!last_why.empty()) continue;
-    *used = &e;
-    if (++matched == c.count) {
-      out.time_s = e.time_s;
-      return out;
-    }
-  }
-  if (!*used) *used = last_candidate;
-  if (!last_candidate) {
+  if (progress.used_event() >= 0) *used = &run.events[progress.used_event()];
+  if (progress.met()) {
+    out.time_s = progress.met_s();
+  } else if (!progress.any_candidate()) {
     out.why = fmt::format("no '{}' by {}", c.event, fmt::join(step.instruments, " or "));
-  } else if (matched > 0) {
-    out.why = fmt::format("{} of {} '{}' done", matched, c.count, c.event);
+  } else if (progress.matched() > 0) {
+    out.why = fmt::format("{} of {} '{}' done", progress.matched(), c.count, c.event);
   } else {
-    out.why = fmt::format("'{}' {}", c.event, last_why);
+    out.why = fmt::format("'{}' {}", c.event, progress.last_mismatch());
   }
   return out;
 }
@@ -99,17 +60,17 @@ void EventQualityMetrics(const PlanStep& step, const Criterion& c, const RunData
   }
 }
 
-CriterionOutcome BoneCriterion(const Criterion& c, const RunData& run) {
-  CriterionOutcome out;
+CriterionOutcome BoneCriterion(const PlanStep& step, const Criterion& c, const RunData& run) {
   const int b = run.model.FindBone(c.bone);
-  const std::vector<double>& v = run.bone_removed_mm3[b];
-  for (std::size_t k = 0; k < v.size(); ++k) {
-    if (v[k] - v[0] >= c.min_volume_mm3) {
-      out.time_s = run.time_s[k];
-      return out;
-    }
+  CriterionProgress progress(step, c);
+  for (std::int64_t k = 0; k < run.frames() && !progress.met(); ++k)
+    progress.OnFrame(run.model, run.time_s[k], run.camera[k], run.bone_removed_mm3[b][k]);
+  CriterionOutcome out;
+  if (progress.met()) {
+    out.time_s = progress.met_s();
+    return out;
   }
-  out.why = fmt::format("{:.2f} mm3 of {} removed, needed {:g}", v.back() - v.front(), c.bone,
+  out.why = fmt::format("{:.2f} mm3 of {} removed, needed {:g}", progress.removed_mm3(), c.bone,
                         c.min_volume_mm3);
   return out;
 }
@@ -149,32 +110,26 @@ CriterionOutcome DistanceCriterion(const PlanStep& step, const Criterion& c, con
   return out;
 }
 
-CriterionOutcome InViewCriterion(const Criterion& c, const RunData& run, double* first_seen) {
+CriterionOutcome InViewCriterion(const PlanStep& step, const Criterion& c, const RunData& run,
+                                 double* first_seen) {
+  CriterionProgress progress(step, c);
+  for (std::int64_t k = 0; k < run.frames() && !progress.met(); ++k)
+    progress.OnFrame(run.model, run.time_s[k], run.camera[k], 0.0);
+  if (std::isnan(*first_seen)) *first_seen = progress.first_seen_s();
   CriterionOutcome out;
-  const Vec3 p = run.model.landmarks[run.model.FindLandmark(c.landmark)].position_mm;
-  double seen = 0;
-  for (std::int64_t k = 0; k < run.frames(); ++k) {
-    if (!PointInView(run.model, run.camera[k], p)) continue;
-    if (std::isnan(*first_seen)) *first_seen = run.time_s[k];
-    if (k > 0) seen += run.time_s[k] - run.time_s[k - 1];
-    if (seen >= c.min_time_s) {
-      out.time_s = run.time_s[k];
-      return out;
-    }
+  if (progress.met()) {
+    out.time_s = progress.met_s();
+    return out;
   }
-  out.why = fmt::format("{} in view for {:.1f} s, needed {:g} s", c.landmark, seen, c.min_time_s);
+  out.why = fmt::format("{} in view for {:.1f} s, needed {:g} s", c.landmark, progress.seen_s(),
+                        c.min_time_s);
   return out;
 }
 
 // First action of a step: its operation or a criterion's event by an allowed instrument.
 double FirstAction(const PlanStep& step, const RunData& run) {
-  for (const Event& e : run.events) {
-    if (!Allowed(step, e.tool)) continue;
-    bool related = !step.operation.empty() && e.kind == step.operation;
-    for (const Criterion& c : step.complete)
-      related = related || (c.kind == Criterion::Kind::kEvent && e.kind == c.event);
-    if (related) return e.time_s;
-  }
+  for (const Event& e : run.events)
+    if (IsStepAction(step, e)) return e.time_s;
   return kNaN;
 }
 
@@ -209,11 +164,11 @@ StepResult EvaluateStep(const PlanStep& step, const RunData& run, double* first_
       o = EventCriterion(step, c, run, &used);
       EventQualityMetrics(step, c, run, used, report);
     } else if (c.kind == Criterion::Kind::kBoneRemoved) {
-      o = BoneCriterion(c, run);
+      o = BoneCriterion(step, c, run);
     } else if (c.kind == Criterion::Kind::kDistance) {
       o = DistanceCriterion(step, c, run, report);
     } else {
-      o = InViewCriterion(c, run, &first_seen);
+      o = InViewCriterion(step, c, run, &first_seen);
     }
     if (std::isnan(o.time_s)) missing.push_back(o.why);
     end = std::max(end, o.time_s);

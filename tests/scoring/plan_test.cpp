@@ -13,12 +13,12 @@ namespace {
 TEST(Plan, BundledPlansLoadAgainstTheScene) {
   const Model model = io::LoadScenario("scenarios/rotator_cuff_repair.yaml");
   const Plan repair = LoadPlan("scenarios/plans/rotator_cuff_repair.yaml", &model);
-  EXPECT_EQ(repair.steps.size(), 10u);
-  EXPECT_EQ(repair.steps[3].id, "anchor_hole_1");
-  ASSERT_EQ(repair.steps[3].complete.size(), 1u);
-  EXPECT_EQ(repair.steps[3].complete[0].detail.at("angle_deg").min.value(), 35.0);
-  EXPECT_TRUE(repair.steps[3].critical);
-  EXPECT_EQ(repair.protected_structures.size(), 2u);
+  EXPECT_EQ(repair.steps.size(), 12u);
+  EXPECT_EQ(repair.steps[5].id, "anchor_hole");
+  ASSERT_EQ(repair.steps[5].complete.size(), 1u);
+  EXPECT_EQ(repair.steps[5].complete[0].detail.at("angle_deg").min.value(), 35.0);
+  EXPECT_TRUE(repair.steps[5].critical);
+  EXPECT_EQ(repair.protected_structures.size(), 1u);
   const Plan tour = LoadPlan("scenarios/plans/rotator_cuff_tour.yaml", &model);
   EXPECT_EQ(tour.steps.size(), 5u);
   EXPECT_EQ(tour.weights.repair_quality, 0.0);

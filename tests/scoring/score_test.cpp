@@ -38,6 +38,12 @@ const Metric& Find(const ScoreReport& r, const std::string& id) {
   throw std::runtime_error("no metric " + id);
 }
 
+// The metric `id` of `r` has `value` and fails its check.
+void ExpectFailingMetric(const ScoreReport& r, const std::string& id, double value) {
+  EXPECT_EQ(Find(r, id).value, value) << id;
+  EXPECT_FALSE(Find(r, id).pass) << id;
+}
+
 const StepResult& Step(const ScoreReport& r, const std::string& id) {
   for (const StepResult& s : r.steps)
     if (s.id == id) return s;
@@ -124,8 +130,7 @@ TEST(Score, WrongInstrumentIsFlagged) {
   spec.hole_by_grasper = true;
   const ScoreReport r = ScoreSynth("wrong", spec).report;
   EXPECT_TRUE(HasViolation(r, "wrong_instrument"));
-  EXPECT_EQ(Find(r, "plan.wrong_instrument_actions").value, 1.0);
-  EXPECT_FALSE(Find(r, "plan.wrong_instrument_actions").pass);
+  ExpectFailingMetric(r, "plan.wrong_instrument_actions", 1.0);
   EXPECT_FALSE(Step(r, "hole").completed);
 }
 
@@ -134,8 +139,7 @@ TEST(Score, ForceOnAProtectedStructureIsCritical) {
   spec.muscle_touch_force_n = 5;
   const ScoreReport r = ScoreSynth("protected", spec).report;
   EXPECT_NEAR(Find(r, "safety.belly.contact_time").value, 0.22, 1e-9);  // frames 85..95
-  EXPECT_EQ(Find(r, "safety.belly.peak_force").value, 5.0);
-  EXPECT_FALSE(Find(r, "safety.belly.peak_force").pass);
+  ExpectFailingMetric(r, "safety.belly.peak_force", 5.0);
   EXPECT_FALSE(Find(r, "safety.belly.time_over_force").pass);
   ASSERT_FALSE(r.critical_errors.empty());
   EXPECT_NE(r.critical_errors[0].find("force above 2 N on belly"), std::string::npos);
@@ -152,12 +156,45 @@ TEST(Score, DamageOnAProtectedStructureIsCritical) {
   EXPECT_FALSE(r.passed);
 }
 
+// A removal where a completion criterion expects its kind of event (the hole step: within 3 mm of
+// the site, on the humerus) is on target, whatever its detail values; the same removal 4 mm from
+// the site is outside every target. The hole step has a landmark target, no target region.
+TEST(Score, RemovalWhereACriterionPlacesItIsOnTarget) {
+  SynthSpec spec;
+  spec.hole_volume_mm3 = 2;
+  spec.hole_angle_deg = 80;  // out of the criterion's range: still where it was planned
+  const ScoreReport on = ScoreSynth("criterion_on", spec).report;
+  EXPECT_EQ(Find(on, "safety.volume_outside_target").value, 0.0);
+  EXPECT_TRUE(Find(on, "safety.volume_outside_target").pass);
+  spec.hole_offset_mm = 4;
+  const ScoreReport off = ScoreSynth("criterion_off", spec).report;
+  EXPECT_EQ(Find(off, "safety.volume_outside_target").value, 2.0);
+  EXPECT_FALSE(Find(off, "safety.volume_outside_target").pass);
+}
+
+// Damage events less than 1 s apart are one episode: one violation and one critical error, the
+// count of events in the metric. Frames 30-32 (0.60-0.64 s) are one episode, frame 90 (1.8 s)
+// another.
+TEST(Score, DamageEventsCloseInTimeAreOneEpisode) {
+  SynthSpec spec;
+  spec.muscle_burr_frames = {30, 31, 32, 90};
+  const ScoreReport r = ScoreSynth("episodes", spec).report;
+  EXPECT_EQ(Find(r, "safety.belly.damage_events").value, 4.0);
+  std::vector<Violation> damage;
+  for (const Violation& v : r.violations)
+    if (v.kind == "damage") damage.push_back(v);
+  ASSERT_EQ(damage.size(), 2u);
+  EXPECT_NEAR(damage[0].time_s, 0.60, 1e-9);
+  EXPECT_NE(damage[0].text.find("(3 events until 0.64 s)"), std::string::npos) << damage[0].text;
+  EXPECT_NEAR(damage[1].time_s, 1.80, 1e-9);
+  EXPECT_EQ(damage[1].text.find("events until"), std::string::npos) << damage[1].text;
+  EXPECT_EQ(r.critical_errors.size(), 2u);
+}
+
 TEST(Score, RemovalOutsideTheTargetIsCounted) {
   SynthSpec spec;
   spec.burr_outside_target = true;
-  const ScoreReport r = ScoreSynth("outside", spec).report;
-  EXPECT_EQ(Find(r, "safety.volume_outside_target").value, 1.0);
-  EXPECT_FALSE(Find(r, "safety.volume_outside_target").pass);
+  ExpectFailingMetric(ScoreSynth("outside", spec).report, "safety.volume_outside_target", 1.0);
 }
 
 TEST(Score, OverTheTimeBudgetFailsTheStep) {
@@ -177,8 +214,7 @@ TEST(Score, CameraLookingAwayLosesTheView) {
   spec.camera_away = true;
   const ScoreReport r = ScoreSynth("away", spec).report;
   EXPECT_FALSE(Step(r, "look").completed);
-  EXPECT_EQ(Find(r, "camera.tip_in_view").value, 0.0);
-  EXPECT_FALSE(Find(r, "camera.tip_in_view").pass);
+  ExpectFailingMetric(r, "camera.tip_in_view", 0.0);
 }
 
 TEST(Score, RolledCameraHeadDeviatesFromTheHorizon) {
@@ -192,9 +228,7 @@ TEST(Score, RolledCameraHeadDeviatesFromTheHorizon) {
 TEST(Score, IdleInstrumentIsFlagged) {
   SynthSpec spec;
   spec.awl_idle = true;
-  const ScoreReport r = ScoreSynth("idle", spec).report;
-  EXPECT_EQ(Find(r, "motion.awl.idle_share").value, 1.0);
-  EXPECT_FALSE(Find(r, "motion.awl.idle_share").pass);
+  ExpectFailingMetric(ScoreSynth("idle", spec).report, "motion.awl.idle_share", 1.0);
 }
 
 TEST(Score, EconomyAndZScoresAgainstAReference) {

@@ -157,6 +157,9 @@ void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
         s.bones[0].removed_volume_mm3 += 1.0;
       }
     }
+    for (int muscle_frame : spec.muscle_burr_frames)
+      if (f == muscle_frame)
+        s.events.push_back({f, s.time_s, "burr", "burr", "muscle", "volume_mm3=0.1", kMuscle});
     if (f >= 50 && f <= 80) {  // awl: 10 mm down onto the site at 50 mm/s, then held
       t0.instrument = 1;
       const double z = spec.awl_idle ? 0.0 : std::max(0.0, 10.0 - (f - 50));
@@ -167,8 +170,10 @@ void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
         s.tool_contacts.push_back({0, ConstraintEnd::Kind::kBone, 0, kSite});
       }
       if (f == spec.hole_frame) {
-        const std::string detail = "depth_mm=" + std::to_string(spec.hole_depth_mm) +
-                                   " angle_deg=" + std::to_string(spec.hole_angle_deg);
+        std::string detail = "depth_mm=" + std::to_string(spec.hole_depth_mm) +
+                             " angle_deg=" + std::to_string(spec.hole_angle_deg);
+        if (spec.hole_volume_mm3 > 0)
+          detail += " volume_mm3=" + std::to_string(spec.hole_volume_mm3);
         s.events.push_back({f, s.time_s, "hole", spec.hole_by_grasper ? "grasper" : "awl",
                             "humerus", detail, kSite + Vec3(spec.hole_offset_mm, 0, 0)});
       }

@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace arthrosim::scoring {
@@ -22,7 +23,10 @@ enum class SeriesClass : std::uint8_t {
   kForce,     ///< N
   kMetric,    ///< derived quantities (removed volume, times): relative
 };
+/// "exact", "hash", "text", "position", "force", "metric" ("?" for no class).
 const char* SeriesClassName(SeriesClass c);
+/// The class SeriesClassName names `name`; nullopt for no class.
+std::optional<SeriesClass> ParseSeriesClass(std::string_view name);
 
 struct DigestSeries {
   std::string name;  ///< e.g. "tools/burr/pose"
