@@ -60,8 +60,10 @@ struct Series {
   std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output,
       cg_it, physics;  // physics: soft tissue + threads (the step without collision)
   double last_residual = 0;
-  int refactors = 0;                // steps that refactored the preconditioner
-  double refactor_ms = 0;           // their total factorisation time
+  int refactors = 0;                // steps that took a new preconditioner factor into use
+  int factor_steps = 0;             // steps that did factor work (a whole factor or a part)
+  double refactor_ms = 0;           // total factor work time
+  double factor_ms_max = 0;         // most factor work in one step
   std::vector<std::uint8_t> holds;  // per timed step: bit s set = slot s holds `instrument`
   double cg_it_max = 0;
 };
@@ -112,9 +114,11 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     }
     s.holds.push_back(holds);
     s.last_residual = t.soft.cg_relative_residual;
-    if (t.soft.refactored) {
-      ++s.refactors;
+    s.refactors += t.soft.refactored ? 1 : 0;
+    if (t.soft.factor_work) {
+      ++s.factor_steps;
       s.refactor_ms += t.soft.factor_ms;
+      s.factor_ms_max = std::max(s.factor_ms_max, t.soft.factor_ms);
     }
   }
   writer.Close();
@@ -156,6 +160,7 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("step_ms_mean={:.3f}\n", Mean(s.step));
   fmt::print("refactors={}\nrefactor_ms_mean={:.3f}\n", s.refactors,
              s.refactors ? s.refactor_ms / s.refactors : 0.0);
+  fmt::print("factor_work_steps={}\nfactor_work_ms_max={:.3f}\n", s.factor_steps, s.factor_ms_max);
   fmt::print("step_ms_p99={:.3f}\nstep_ms_max={:.3f}\n", Quantile(s.step, 0.99), Max(s.step));
 }
 
@@ -176,6 +181,7 @@ void PrintAbusive(const Model& model, const std::string& trajectory) {
              s.cg_it_max);
   fmt::print("abusive_refactors_per_1000_steps={:.1f}\n",
              s.step.empty() ? 0.0 : 1000.0 * s.refactors / static_cast<double>(s.step.size()));
+  fmt::print("abusive_factor_work_ms_max={:.3f}\n", s.factor_ms_max);
 }
 
 // One pair of figures per operation trajectory (ops_dir/<instrument>.yaml): the median and the

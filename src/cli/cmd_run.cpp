@@ -1,9 +1,12 @@
 // arthrosim run SCENARIO [--trajectory F] [--out F.h5] [--duration S | --steps N] [--threads N]
-// Loads the scenario, replays the trajectory through the fixed-step core and writes HDF5.
+//              [--resume RUN.h5 | --from RUN.h5 --at T]
+// Loads the scenario (or a run file's checkpoint), replays the trajectory through the fixed-step
+// core and writes HDF5.
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <limits>
@@ -17,7 +20,9 @@
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
 #include "commands.h"
+#include "live_feedback.h"
 #include "progress.h"
+#include "run_resume.h"
 #include "video.h"
 
 namespace arthrosim::cli {
@@ -28,6 +33,7 @@ void OnSignal(int) { g_interrupted = true; }
 
 struct RunArgs {
   std::string scenario, trajectory, out, record;
+  std::string plan;  // --plan: live feedback against this procedure plan (live_feedback.h)
   double duration_s = -1;
   std::int64_t steps = -1;
   int threads = 1;
@@ -37,6 +43,8 @@ struct RunArgs {
   bool live = false;       // serve: input from a device, paced to real time, runs until it ends
   double max_force_n = 0;  // serve --max-force: overrides haptics.max_force_n when > 0
   VideoArgs video;
+  std::string resume, from;    // --resume RUN.h5, --from RUN.h5 (run_resume.h)
+  std::optional<double> at_s;  // --at T
 };
 
 // Live runs say when they fall behind real time: a log line and a `realtime_lag` event (detail
@@ -81,69 +89,110 @@ std::int64_t StepCount(const RunArgs& a, const Model& m, const input::InputSourc
   return static_cast<std::int64_t>(std::llround(duration / m.options.dt_s));
 }
 
+RunStart Start(const RunArgs& a) {
+  RunRequest r{a.scenario, a.trajectory, a.seed, std::nullopt, a.resume, a.from, a.at_s, a.live};
+  if (a.noise_scale > 0) r.noise_scale = a.noise_scale;
+  return PrepareRunStart(r);
+}
+
 int Run(const RunArgs& a) {
+  // From the start: an interrupt while loading stops before any file is made, one later stops
+  // the run at the end of a step with a closed file and a last checkpoint.
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
   SetThreadCount(a.threads);
-  Model loaded = io::LoadScenario(a.scenario);
-  if (a.max_force_n > 0) loaded.haptics.max_force_n = a.max_force_n;
-  const Model model = std::move(loaded);
+  RunStart start = Start(a);
+  if (a.max_force_n > 0) start.model.haptics.max_force_n = a.max_force_n;
+  const Model model = std::move(start.model);
+  std::unique_ptr<LiveFeedback> feedback;  // the plan is checked before anything is opened
+  if (!a.plan.empty()) feedback = std::make_unique<LiveFeedback>(a.plan, model, !a.quiet);
   input::SourceOptions options;
   options.dt_s = model.options.dt_s;
-  options.seed = a.seed;
-  options.noise_scale = a.noise_scale;
+  options.seed = start.seed;
+  options.noise_scale = start.noise_scale;
   options.record_path = a.record;
   std::vector<std::string> warnings;
-  std::unique_ptr<input::InputSource> source = input::OpenInputSource(
-      a.trajectory.empty() ? "none" : a.trajectory, model, options, &warnings);
+  std::unique_ptr<input::InputSource> source =
+      input::OpenInputSource(start.trajectory, model, options, &warnings);
   for (const std::string& w : warnings) fmt::print(stderr, "warning: {}\n", w);
-  const std::int64_t steps = StepCount(a, model, source.get());
-  const std::string out = a.out.empty() ? model.options.output_file : a.out;
+  State state = std::move(start.state);
+  if (start.restored) source->RestoreControllers(state);
+  std::int64_t steps = StepCount(a, model, source.get());
+  if (start.restored && a.steps < 0 && a.duration_s < 0) {  // to the parent's (absolute) end
+    steps = (start.end_step >= 0 ? start.end_step : steps) - state.step;
+  }
+  const std::string out =
+      !a.out.empty() ? a.out
+                     : (start.default_out.empty() ? model.options.output_file : start.default_out);
+  CheckContinuation(start, out, steps);
+  if (g_interrupted) {
+    fmt::print(stderr, "interrupted before the run started: no output written\n");
+    return 130;
+  }
 
-  State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);
-  io::RunWriter writer(out, model, state);
+  io::RunWriterOptions writer_options;
+  writer_options.origin = start.origin;
+  writer_options.origin.end_step = a.live ? -1 : state.step + steps;
+  io::RunWriter writer(out, model, state, writer_options);
   std::unique_ptr<VideoOutput> video;
   if (!a.video.video.empty() || !a.video.frames_dir.empty()) {
     video = std::make_unique<VideoOutput>(model, a.video);
     video->Push(state);
   }
 
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
+  if (feedback) feedback->Begin(state, source.get());
+
   ProgressBar bar(steps, !a.quiet && !a.live);
   InputFrame frame;
   const int every = model.options.output_every_steps;
   LagReporter lag;
   lag.threshold_s = std::max(lag.threshold_s, 5 * model.options.dt_s);
+  // Wall time is printed only (the real-time factor), never written into results.
+  const auto wall_start = std::chrono::steady_clock::now();
+  const double start_time_s = state.time_s;  // a continued run starts at its checkpoint's time
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
+    source->SaveControllers(&state);
     sim::Step(model, frame, &state, &ws);
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
+    if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());
     if (state.step % every == 0) {
       writer.Append(state);
       if (video) video->Push(state);
     } else {
       writer.RecordEvents(state);
     }
+    InjectKillAfterStep(state.step);
     bar.Update(k + 1);
   }
   bar.Finish();
+  writer.WriteCheckpoint(state);  // the last state, also of an interrupted run
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   writer.Close();
   if (a.live && lag.max_s > 0) {
     fmt::print(stderr, "serve: largest lag behind real time {:.3f} s ({} reports)\n", lag.max_s,
                lag.reports);
   }
   if (video) video->Finish();
+  if (feedback) feedback->Finish();
   if (g_interrupted) {
-    fmt::print(stderr, "interrupted at step {}: {} holds {} frames\n", state.step, out,
-               writer.frames());
+    fmt::print(stderr,
+               "interrupted at step {}: {} holds {} frames and a checkpoint of this step "
+               "(continue with: arthrosim run --resume {})\n",
+               state.step, out, writer.frames(), out);
     return 130;
   }
   if (!a.quiet) {
     fmt::print(stderr, "{}: {} steps ({:.2f} s simulated), {} frames\n", out, state.step,
                state.time_s, writer.frames());
+    // the step loop only (stepping, writing, live video); real-time factor = simulated / wall
+    fmt::print(stderr, "wall time {:.2f} s, real-time factor {:.2f}x\n", wall_s,
+               wall_s > 0 ? (state.time_s - start_time_s) / wall_s : 0.0);
   }
   return kExitOk;
 }
@@ -169,6 +218,9 @@ void AddServeCommand(CLI::App* app, int* exit_code) {
                   "Clamp of the force sent to the device, N (default: the scenario's "
                   "haptics.max_force_n; docs/haptics.md lists device values)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--plan", a->plan,
+                  "Procedure plan: warn the trainee live (STRING messages, live_warning events; "
+                  "docs/metrics.md)");
   cmd->add_flag("--quiet", a->quiet, "No progress bar or summary");
   cmd->callback([a, bind, port, exit_code] {
     a->live = true;
@@ -180,7 +232,8 @@ void AddServeCommand(CLI::App* app, int* exit_code) {
 void AddRunCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand("run", "Run a scenario with a trajectory and write HDF5");
   auto a = std::make_shared<RunArgs>();
-  cmd->add_option("scenario", a->scenario, "Scenario YAML file")->required();
+  cmd->add_option("scenario", a->scenario,
+                  "Scenario YAML file (optional with --resume / --from: the run file's own)");
   cmd->add_option("--trajectory", a->trajectory,
                   "Recorded session (.csv, .h5), synthetic script (.yaml), or igtl[:ADDR][:PORT] "
                   "for a live device; default: idle");
@@ -190,6 +243,8 @@ void AddRunCommand(CLI::App* app, int* exit_code) {
          "Trainee noise of a script: 0 = the expert script as written, 1 = its noise block")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--record", a->record, "Record the applied input per step as a session CSV");
+  cmd->add_option("--plan", a->plan,
+                  "Procedure plan: live_warning events as `serve --plan` gives (docs/metrics.md)");
   cmd->add_option("--out", a->out, "HDF5 output file (default: the scenario's output.file)");
   auto* duration = cmd->add_option("--duration", a->duration_s, "Simulated seconds to run")
                        ->check(CLI::PositiveNumber);
@@ -200,6 +255,19 @@ void AddRunCommand(CLI::App* app, int* exit_code) {
       ->check(CLI::Range(1, 256));
   cmd->add_flag("--quiet", a->quiet, "No progress bar or summary");
   AddVideoOptions(cmd, &a->video, true);
+  // A run's video covers the run: `render`'s time range (--from S --to S) does not apply here,
+  // and --from names the run file to start from.
+  cmd->remove_option(cmd->get_option("--from"));
+  cmd->remove_option(cmd->get_option("--to"));
+  auto* resume = cmd->add_option("--resume", a->resume,
+                                 "Continue a killed or finished run from its last checkpoint, with "
+                                 "its own input, into a new file (default RUN.resumed.h5)");
+  auto* from = cmd->add_option("--from", a->from,
+                               "Start a new run from a run file's checkpoint at or before --at");
+  auto* at = cmd->add_option("--at", a->at_s, "Simulated time (s) of the --from checkpoint")
+                 ->check(CLI::NonNegativeNumber);
+  resume->excludes(from);
+  at->needs(from);
   cmd->callback([a, exit_code] { *exit_code = Run(*a); });
 }
 

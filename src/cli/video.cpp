@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <limits>
+#include <utility>
 
 #include "arthrosim/core/error.h"
 
@@ -51,14 +52,15 @@ void AddVideoOptions(CLI::App* cmd, VideoArgs* a, bool with_video) {
   cmd->add_option("--to", a->to_s, "Last time to render, s")->check(CLI::NonNegativeNumber);
 }
 
-VideoOutput::VideoOutput(const Model& model, const VideoArgs& args) {
+VideoOutput::VideoOutput(const Model& model, const VideoArgs& args,
+                         render::OverlayTextFn overlay_text) {
   const render::RenderOptions options = ToOptions(args);
   // One llvmpipe rasteriser thread unless the user chose: images are then reproducible.
   setenv("LP_NUM_THREADS", "1", 0);
   renderer_ = std::make_unique<render::Renderer>();
   sink_ = render::MakeSink(options, args.video);
-  sequence_ =
-      std::make_unique<render::SequenceRenderer>(model, options, renderer_.get(), sink_.get());
+  sequence_ = std::make_unique<render::SequenceRenderer>(model, options, renderer_.get(),
+                                                         sink_.get(), std::move(overlay_text));
 }
 
 VideoOutput::~VideoOutput() = default;

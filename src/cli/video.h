@@ -21,8 +21,10 @@ void AddVideoOptions(CLI::App* cmd, VideoArgs* a, bool with_video);
 /// Renderer + sink + sequence for a run; Push states, then Finish.
 class VideoOutput {
  public:
+  /// `overlay_text` (optional) fills the overlay's step and verdict at each state.
   /// @throws InputError for bad options (field named), RenderError if OSMesa/ffmpeg fail.
-  VideoOutput(const Model& model, const VideoArgs& args);
+  VideoOutput(const Model& model, const VideoArgs& args,
+              render::OverlayTextFn overlay_text = nullptr);
   ~VideoOutput();
   void Push(const State& state) { sequence_->Push(state); }
   void Finish() { sequence_->Finish(); }

@@ -85,12 +85,23 @@ class BadInput : public ::testing::TestWithParam<Case> {
     std::ofstream(truncated_, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
     text_h5_ = (root_ / "text_named_h5.h5").string();
     std::ofstream(text_h5_) << "a text file named like an HDF5 session or run file\n";
+    // The valid run without its checkpoints, and as if written by another compiler.
+    nockpt_ = (root_ / "no_checkpoints.h5").string();
+    otherbuild_ = (root_ / "other_build.h5").string();
+    fs::copy_file(run_, nockpt_);
+    fs::copy_file(run_, otherbuild_);
+    const std::string edit = "/usr/bin/python3 -c \"import h5py; del h5py.File('" + nockpt_ +
+                             "', 'a')['checkpoints']; h5py.File('" + otherbuild_ +
+                             "', 'a')['meta'].attrs['compiler'] = 'OtherCC 1.0'\"";
+    ASSERT_EQ(std::system(edit.c_str()), 0) << edit;
   }
   static void TearDownTestSuite() { fs::remove_all(root_); }
 
   static std::string Expand(std::string s, const std::string& out) {
-    const std::array<std::pair<const char*, std::string>, 7> subs = {
-        {{"{bad}", kBad},
+    const std::array<std::pair<const char*, std::string>, 9> subs = {
+        {{"{nockpt_run}", nockpt_},
+         {"{otherbuild_run}", otherbuild_},
+         {"{bad}", kBad},
          {"{scenes}", kScenes},
          {"{out}", out},
          {"{run}", run_},
@@ -107,11 +118,12 @@ class BadInput : public ::testing::TestWithParam<Case> {
   }
 
   static fs::path root_;
-  static std::string run_, notrun_, truncated_, text_h5_;
+  static std::string run_, notrun_, truncated_, text_h5_, nockpt_, otherbuild_;
 };
 
 fs::path BadInput::root_;
-std::string BadInput::run_, BadInput::notrun_, BadInput::truncated_, BadInput::text_h5_;
+std::string BadInput::run_, BadInput::notrun_, BadInput::truncated_, BadInput::text_h5_,
+    BadInput::nockpt_, BadInput::otherbuild_;
 
 TEST_P(BadInput, ExitsWithItsCodeAndNamesTheFault) {
   const Case& c = GetParam();

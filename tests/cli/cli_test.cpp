@@ -14,6 +14,8 @@
 #include <string>
 #include <thread>
 
+#include "cli_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -40,21 +42,9 @@ Result Exec(const std::string& args) {
   return r;
 }
 
-class CliTest : public ::testing::Test {
+class CliTest : public arthrosim::testing::TempDirTest {
  protected:
-  void SetUp() override {
-    // The process id keeps two test runs (two build trees) on one machine out of each other's
-    // way: one run's TearDown must not remove the folder the other is writing.
-    dir_ = fs::temp_directory_path() /
-           ("arthrosim_cli_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string P(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
+  CliTest() : TempDirTest("arthrosim_cli_") {}
 };
 
 TEST_F(CliTest, ValidateAcceptsTheShippedScenarios) {
@@ -117,14 +107,9 @@ TEST_F(CliTest, InfoSummarisesARun) {
 
 TEST_F(CliTest, KilledRunLeavesAReadableFile) {
   const std::string out = P("killed.h5");
-  const pid_t pid = fork();
+  // a long run (flushes every 0.1 simulated s in this scenario)
+  const pid_t pid = arthrosim::testing::SpawnRun(kBinary, kSmall, "1000000", out);
   ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    // a long run (flushes every 0.1 simulated s in this scenario)
-    execl(kBinary.c_str(), kBinary.c_str(), "run", kSmall.c_str(), "--steps", "1000000", "--quiet",
-          "--out", out.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
   // wait until some frames are durable, then kill -9
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));
   kill(pid, SIGKILL);
@@ -136,7 +121,7 @@ TEST_F(CliTest, KilledRunLeavesAReadableFile) {
                             "p=f['bodies/block/positions_offset'][:n]; sys.exit(0 if n>5 and "
                             "p.shape[0]==n and (f['time'][1:n]>f['time'][:n-1]).all() else 1)\"";
   EXPECT_EQ(std::system(check.c_str()), 0) << check;
-  // Its ParaView sidecar can be rebuilt from the file: frames listed 0.1 s apart (5 steps here),
+  // Its ParaView sidecar can be rebuilt from the file: frames listed 0.2 s apart (10 steps here),
   // the last stored frame included.
   const Result x = Exec("info " + out + " --write-xdmf");
   EXPECT_EQ(x.exit_code, 0) << x.output;
@@ -149,7 +134,7 @@ TEST_F(CliTest, KilledRunLeavesAReadableFile) {
   const std::size_t at = x.output.find("frames: ");
   ASSERT_NE(at, std::string::npos) << x.output;
   const long stored = std::stol(x.output.substr(at + 8));
-  EXPECT_EQ(frames, static_cast<std::size_t>((stored - 2) / 5 + 2)) << x.output;
+  EXPECT_EQ(frames, static_cast<std::size_t>((stored - 2) / 10 + 2)) << x.output;
   EXPECT_NE(text.find("Name=\"frame" + std::to_string(stored - 1) + "\""), std::string::npos);
 }
 
@@ -171,15 +156,7 @@ TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {
   const std::string stream = client + " " + kSource +
                              "/tests/testdata/scenes/small_session.csv --port " + port +
                              " --forces " + P("forces.csv") + " > " + P("client.log") + " 2>&1";
-  int rc = 1;
-  for (int attempt = 0; attempt < 40 && rc != 0; ++attempt) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(250));
-    rc = std::system(stream.c_str());
-  }
-  ASSERT_EQ(rc, 0) << stream;
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "serve status " << status;
+  ASSERT_NO_FATAL_FAILURE(arthrosim::testing::StreamThenWaitForServer(stream, pid));
 
   const Result replay =
       Exec("run " + kSmall + " --trajectory " + rec + " --quiet --out " + P("replay.h5"));

@@ -1,7 +1,6 @@
 // The grasping demonstrations (trajectories/ops/{grasper,retriever,hook}.yaml) run by the
 // arthrosim binary on the shoulder scene; each outcome is checked from the run file alone (the
 // scenario only for its region and landmark definitions), as scoring reads it.
-#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -15,22 +14,26 @@
 namespace arthrosim {
 namespace {
 
-const std::string kBinary = std::string(ARTHROSIM_BINARY_DIR) + "/src/cli/arthrosim";
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 const std::string kScene = kSource + "/scenarios/rotator_cuff_repair.yaml";
 
-// Runs trajectories/ops/<name>.yaml on the shoulder scene; returns the run file.
+// The run of trajectories/ops/<name>.yaml on the shoulder scene, made once by the fixture test
+// Run.ops_<name> (tests/cli/CMakeLists.txt) and shared with its golden comparison.
 std::string RunDemo(const std::string& name) {
-  const std::string out =
-      (std::filesystem::temp_directory_path() /
-       ("arthrosim_grasp_demo_" + name + "_" + std::to_string(getpid()) + ".h5"))
-          .string();
-  const std::string cmd = kBinary + " run " + kScene + " --trajectory " + kSource +
-                          "/trajectories/ops/" + name + ".yaml --quiet --out " + out +
-                          " > /dev/null";
-  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  return out;
+  const std::string run = std::string(ARTHROSIM_BINARY_DIR) + "/test_runs/ops_" + name + ".h5";
+  EXPECT_TRUE(std::filesystem::exists(run)) << run << ": run by the CTest Run.ops_" << name;
+  return run;
 }
+
+// A demonstration's run file, open for reading (it stays in test_runs/: the golden comparison
+// Golden.ops_<name> reads it too, possibly after this test).
+struct DemoRun {
+  explicit DemoRun(const std::string& name)
+      : path(RunDemo(name)), run(path), last(run.frame_count() - 1) {}
+  const std::string path;
+  const io::RunReader run;
+  const std::int64_t last;  ///< the last frame
+};
 
 std::vector<Event> OfKind(const std::vector<Event>& events, const std::string& kind) {
   std::vector<Event> out;
@@ -65,6 +68,20 @@ const SpringConstraint* Tagged(const State& s, const std::string& tag) {
   return nullptr;
 }
 
+// How far the tool of slot 0 moved from frame a to frame b.
+Vec3 ToolMoved(const State& a, const State& b) {
+  return b.tools[0].pose.position_mm - a.tools[0].pose.position_mm;
+}
+
+// From frame a to frame b the tool moved `distance_mm` (within 1 mm) and `moved` came along its
+// direction by as much (within 1 mm): `what` happened.
+void ExpectDrawnAlong(const State& a, const State& b, const Vec3& moved, double distance_mm,
+                      const char* what) {
+  const Vec3 tool_moved = ToolMoved(a, b);
+  EXPECT_NEAR(tool_moved.norm(), distance_mm, 1.0);
+  EXPECT_NEAR(moved.dot(tool_moved.normalized()), tool_moved.norm(), 1.0) << what;
+}
+
 Vec3 Centroid(const Points& x, const std::vector<std::int32_t>& nodes) {
   Vec3 c = Vec3::Zero();
   for (const std::int32_t n : nodes) c += x.col(n);
@@ -73,9 +90,8 @@ Vec3 Centroid(const Points& x, const std::vector<std::int32_t>& nodes) {
 
 TEST(GraspDemos, GrasperReducesTheTearEdgeTowardTheFootprint) {
   const Model model = io::LoadScenario(kScene);
-  const std::string path = RunDemo("grasper");
-  io::RunReader run(path);
-  const std::int64_t last = run.frame_count() - 1;
+  const DemoRun demo("grasper");
+  const auto& [path, run, last] = demo;
   ASSERT_GT(last, 0);
   const std::vector<Event> events = run.EventsUpTo(last);
   const std::vector<Event> grasps = OfKind(events, "grasp");
@@ -110,13 +126,11 @@ TEST(GraspDemos, GrasperReducesTheTearEdgeTowardTheFootprint) {
   const double after_mm = (Centroid(x1, edge.nodes) - footprint).norm();
   EXPECT_GT(before_mm - after_mm, 4.0) << before_mm << " -> " << after_mm;
   EXPECT_TRUE(x1.allFinite());
-  std::filesystem::remove(path);
 }
 
 TEST(GraspDemos, RetrieverDrawsALimbOutByTheCommandedDistance) {
-  const std::string path = RunDemo("retriever");
-  io::RunReader run(path);
-  const std::int64_t last = run.frame_count() - 1;
+  const DemoRun demo("retriever");
+  const auto& [path, run, last] = demo;
   ASSERT_GT(last, 0);
   const std::vector<Event> grasps = OfKind(run.EventsUpTo(last), "grasp");
   ASSERT_EQ(grasps.size(), 1u);
@@ -136,19 +150,14 @@ TEST(GraspDemos, RetrieverDrawsALimbOutByTheCommandedDistance) {
   const State a = run.Frame(k0), b = run.Frame(k1);
   const SpringConstraint* c = Tagged(b, "grasp");
   ASSERT_NE(c, nullptr) << "still held at the end of the pull";
-  const Vec3 tool_moved = b.tools[0].pose.position_mm - a.tools[0].pose.position_mm;
   const Vec3 node_moved = EndAt(b, c->b) - EndAt(a, c->b);
-  EXPECT_NEAR(tool_moved.norm(), 15.0, 1.0);
-  EXPECT_NEAR(node_moved.dot(tool_moved.normalized()), tool_moved.norm(), 1.0)
-      << "the node drawn by the commanded distance";
-  EXPECT_LT((node_moved - tool_moved).norm(), 1.5);
-  std::filesystem::remove(path);
+  ExpectDrawnAlong(a, b, node_moved, 15.0, "the node drawn by the commanded distance");
+  EXPECT_LT((node_moved - ToolMoved(a, b)).norm(), 1.5);
 }
 
 TEST(GraspDemos, HookPullsALoopOfALimbOutByTheCommandedDistance) {
-  const std::string path = RunDemo("hook");
-  io::RunReader run(path);
-  const std::int64_t last = run.frame_count() - 1;
+  const DemoRun demo("hook");
+  const auto& [path, run, last] = demo;
   ASSERT_GT(last, 0);
   const std::vector<Event> events = run.EventsUpTo(last);
   const std::vector<Event> catches = OfKind(events, "hook_catch");
@@ -171,14 +180,10 @@ TEST(GraspDemos, HookPullsALoopOfALimbOutByTheCommandedDistance) {
   const SpringConstraint* c0 = Tagged(a, "hook");
   const SpringConstraint* c1 = Tagged(b, "hook");
   ASSERT_NE(c1, nullptr) << "still held at the end of the draw";
-  const Vec3 tool_moved = b.tools[0].pose.position_mm - a.tools[0].pose.position_mm;
   const Vec3 thread_moved = EndAt(b, c1->b) - EndAt(a, c0->b);
-  EXPECT_NEAR(tool_moved.norm(), 10.0, 1.0);
-  EXPECT_NEAR(thread_moved.dot(tool_moved.normalized()), tool_moved.norm(), 1.0)
-      << "the loop came out by the commanded distance";
+  ExpectDrawnAlong(a, b, thread_moved, 10.0, "the loop came out by the commanded distance");
   EXPECT_LT((EndAt(b, c1->a) - EndAt(b, c1->b)).norm(), 3.0);
   EXPECT_TRUE(b.threads[0].x.allFinite());
-  std::filesystem::remove(path);
 }
 
 }  // namespace

@@ -1,8 +1,8 @@
 // The cutting and shaving demonstrations (trajectories/ops/*.yaml) run on the shoulder scene with
-// the arthrosim binary; each outcome is checked from the run file alone (plus the scenario, for
-// landmark positions and fixed regions): pieces, volumes, events and where they happened.
+// the arthrosim binary (by the fixture tests Run.ops_<name>); each outcome is checked from the run
+// file alone (plus the scenario, for landmark positions and fixed regions): pieces, volumes, events
+// and where they happened.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -19,38 +19,14 @@
 namespace arthrosim {
 namespace {
 
-const std::string kBinary = std::string(ARTHROSIM_BINARY_DIR) + "/src/cli/arthrosim";
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 
-// Run files written by this process, removed when the tests end.
-std::vector<std::string>& RunFiles() {
-  static std::vector<std::string> files;
-  return files;
-}
-
-class RemoveRunFiles : public ::testing::Environment {
- public:
-  void TearDown() override {
-    for (const std::string& f : RunFiles()) {
-      std::filesystem::remove(f);
-      std::filesystem::remove(std::filesystem::path(f).replace_extension(".xmf"));  // sidecar
-    }
-  }
-};
-const auto* const kRemoveRunFiles = ::testing::AddGlobalTestEnvironment(new RemoveRunFiles);
-
-// Runs trajectories/ops/<name>.yaml on the shoulder scene; returns the run file (named after this
-// process, so concurrent test runs do not share it).
+// The run of trajectories/ops/<name>.yaml on the shoulder scene, made once by the fixture test
+// Run.ops_<name> (tests/cli/CMakeLists.txt) and shared with its golden comparison.
 std::string RunDemo(const std::string& name) {
-  const std::string out = (std::filesystem::temp_directory_path() /
-                           ("arthrosim_ops_" + name + "_" + std::to_string(getpid()) + ".h5"))
-                              .string();
-  const std::string cmd = kBinary + " run " + kSource + "/scenarios/rotator_cuff_repair.yaml" +
-                          " --trajectory " + kSource + "/trajectories/ops/" + name + ".yaml" +
-                          " --out " + out + " > /dev/null";
-  RunFiles().push_back(out);
-  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  return out;
+  const std::string run = std::string(ARTHROSIM_BINARY_DIR) + "/test_runs/ops_" + name + ".h5";
+  EXPECT_TRUE(std::filesystem::exists(run)) << run << ": run by the CTest Run.ops_" << name;
+  return run;
 }
 
 int Index(const std::vector<std::string>& names, const std::string& name) {
@@ -272,21 +248,45 @@ TEST(OpsDemo, CutterCutsASutureLimbLeavingTheAnchoredPart) {
   }
 }
 
+// A demonstration on the supraspinatus tendon's edge read back: its `kind` events on the tendon,
+// how far from tear_edge_center the farthest one was, and the tendon at frame 0 and at the end.
+struct EdgeDemo {
+  EdgeDemo(const std::string& name, const std::string& kind)
+      : run(RunDemo(name)),
+        last(run.frame_count() - 1),
+        tendon(Index(run.info().soft_bodies, "supraspinatus_tendon")),
+        events(run.EventsUpTo(last)),
+        edge(LandmarkMm("tear_edge_center")),
+        event_count(CountEvents(events, kind, "supraspinatus_tendon")),
+        event_far(FarthestEvent(events, kind, "supraspinatus_tendon", edge)) {
+    EXPECT_GE(event_count, 5) << name;
+    EXPECT_GE(tendon, 0);
+    if (tendon < 0) return;
+    start = run.Frame(0).soft_bodies[static_cast<std::size_t>(tendon)];
+    end = run.Frame(last);
+  }
+  /// The tendon at the end.
+  const SoftBodyState& Tendon() const { return end.soft_bodies[static_cast<std::size_t>(tendon)]; }
+
+  const io::RunReader run;
+  const std::int64_t last;
+  const int tendon;
+  const std::vector<Event> events;
+  const Vec3 edge;
+  const int event_count;
+  const double event_far;
+  SoftBodyState start;
+  State end;
+};
+
 // Debridement of the tendon edge: material goes at tear_edge_center only (the volume of the
 // tendon's tets within 10 mm of it falls by what was booked as removed, within 2 %; elsewhere it
 // changes by less than 1 % of that), and the tendon is finite and at rest afterwards.
 TEST(OpsDemo, ShaverDebridesTheTendonEdge) {
-  const io::RunReader run(RunDemo("shaver"));
-  const std::int64_t last = run.frame_count() - 1;
-  const int tendon = Index(run.info().soft_bodies, "supraspinatus_tendon");
-  ASSERT_GE(tendon, 0);
-  const std::vector<Event> events = run.EventsUpTo(last);
-  EXPECT_GE(CountEvents(events, "shave", "supraspinatus_tendon"), 5);
-  const Vec3 edge = LandmarkMm("tear_edge_center");
-  const double event_far = FarthestEvent(events, "shave", "supraspinatus_tendon", edge);
-  const SoftBodyState start = run.Frame(0).soft_bodies[static_cast<std::size_t>(tendon)];
-  const State s = run.Frame(last);
-  const SoftBodyState& b = s.soft_bodies[static_cast<std::size_t>(tendon)];
+  const EdgeDemo demo("shaver", "shave");
+  ASSERT_GE(demo.tendon, 0);
+  const auto& [run, last, tendon, events, edge, event_count, event_far, start, s] = demo;
+  const SoftBodyState& b = demo.Tendon();
   constexpr double kRegionMm = 10.0;
   const SplitVolume before = VolumeAround(start, start, edge, kRegionMm);
   const SplitVolume after = VolumeAround(start, b, edge, kRegionMm);
@@ -294,9 +294,8 @@ TEST(OpsDemo, ShaverDebridesTheTendonEdge) {
       "shaver: %d shaves, farthest %.2f mm from tear_edge_center; volume within "
       "%.0f mm %.3f -> %.3f mm^3 (removed %.3f), elsewhere %.6f -> %.6f mm^3; "
       "max speed %.3g mm/s\n",
-      CountEvents(events, "shave", "supraspinatus_tendon"), event_far, kRegionMm, before.near_mm3,
-      after.near_mm3, b.removed_volume_mm3, before.far_mm3, after.far_mm3,
-      MaxSpeedMmS(run, last, tendon));
+      event_count, event_far, kRegionMm, before.near_mm3, after.near_mm3, b.removed_volume_mm3,
+      before.far_mm3, after.far_mm3, MaxSpeedMmS(run, last, tendon));
   EXPECT_LT(event_far, 6.0);
   EXPECT_GT(b.removed_volume_mm3, 0.5);
   EXPECT_NEAR(before.near_mm3 - after.near_mm3, b.removed_volume_mm3, 0.02 * b.removed_volume_mm3);
@@ -308,17 +307,10 @@ TEST(OpsDemo, ShaverDebridesTheTendonEdge) {
 // Cautery along the tendon edge: marks and trimming at tear_edge_center, nowhere else (marks are
 // located where their nodes were at frame 0, so a tendon dragged along by the probe fails).
 TEST(OpsDemo, ElectrocauteryMarksAndTrimsTheTendon) {
-  const io::RunReader run(RunDemo("electrocautery"));
-  const std::int64_t last = run.frame_count() - 1;
-  const int tendon = Index(run.info().soft_bodies, "supraspinatus_tendon");
-  ASSERT_GE(tendon, 0);
-  const std::vector<Event> events = run.EventsUpTo(last);
-  EXPECT_GE(CountEvents(events, "cauterize", "supraspinatus_tendon"), 5);
-  const Vec3 edge = LandmarkMm("tear_edge_center");
-  const double event_far = FarthestEvent(events, "cauterize", "supraspinatus_tendon", edge);
-  const SoftBodyState start = run.Frame(0).soft_bodies[static_cast<std::size_t>(tendon)];
-  const State s = run.Frame(last);
-  const SoftBodyState& b = s.soft_bodies[static_cast<std::size_t>(tendon)];
+  const EdgeDemo demo("electrocautery", "cauterize");
+  ASSERT_GE(demo.tendon, 0);
+  const auto& [run, last, tendon, events, edge, event_count, event_far, start, s] = demo;
+  const SoftBodyState& b = demo.Tendon();
   int marked = 0;
   double mark_far = 0;
   for (std::size_t n = 0; n < b.cauterized.size(); ++n) {
@@ -329,8 +321,7 @@ TEST(OpsDemo, ElectrocauteryMarksAndTrimsTheTendon) {
   std::printf(
       "electrocautery: %d events, farthest %.2f mm from tear_edge_center; %d nodes "
       "marked, farthest %.2f mm; removed %.3f mm^3\n",
-      CountEvents(events, "cauterize", "supraspinatus_tendon"), event_far, marked, mark_far,
-      b.removed_volume_mm3);
+      event_count, event_far, marked, mark_far, b.removed_volume_mm3);
   EXPECT_LT(event_far, 8.0);  // the sweep runs 6 mm either side of the landmark
   EXPECT_GE(marked, 5);
   EXPECT_LT(mark_far, 8.0);

@@ -1,0 +1,152 @@
+// The trainee variants of the expert repair, scored against the repair plan from their run files
+// alone: each fails the step it should, for the reason it should, where the expert run passes
+// that same step (the control). The runs are made once by the fixture tests Run.<name>
+// (tests/cli/CMakeLists.txt) into build/test_runs (ARTHROSIM_TEST_RUNS=DIR reads them elsewhere):
+//  - novice_order: the pilot hole and the anchor before the footprint is prepared;
+//  - novice_damage: the shaver in the protected muscle belly, the burr on the articular surface
+//    outside every target, both before the diagnostic look is done;
+//  - novice_economy (with its trainee noise): the expert's steps at half speed with tremor,
+//    overshoot and hesitation, scored with the expert run as reference.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "arthrosim/scoring/plan.h"
+#include "arthrosim/scoring/run_data.h"
+#include "arthrosim/scoring/score.h"
+
+namespace arthrosim::scoring {
+namespace {
+
+const std::string kPlan =
+    std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/plans/rotator_cuff_repair.yaml";
+
+std::string RunPath(const std::string& name) {
+  const char* dir = std::getenv("ARTHROSIM_TEST_RUNS");  // else the fixture runs' folder
+  const std::string runs = dir != nullptr ? dir : ARTHROSIM_BINARY_DIR "/test_runs";
+  return runs + "/rotator_cuff_repair_" + name + ".h5";
+}
+
+const RunData& RunOf(const std::string& name) {
+  static std::map<std::string, RunData>* runs = new std::map<std::string, RunData>;
+  auto it = runs->find(name);
+  if (it == runs->end()) {
+    const std::string path = RunPath(name);
+    it = runs->emplace(name, ReadRunData(path, LoadRunModel(path, ""))).first;
+  }
+  return it->second;
+}
+
+ScoreReport Score(const std::string& name, const std::vector<std::string>& references = {}) {
+  const RunData& run = RunOf(name);
+  const Plan plan = LoadPlan(kPlan, &run.model);
+  std::vector<const RunData*> refs;
+  for (const std::string& r : references) refs.push_back(&RunOf(r));
+  return Evaluate(plan, run, refs);
+}
+
+const StepResult& Step(const ScoreReport& r, const std::string& id) {
+  for (const StepResult& s : r.steps)
+    if (s.id == id) return s;
+  ADD_FAILURE() << "no step " << id;
+  static const StepResult none;
+  return none;
+}
+
+const Metric* FindMetric(const ScoreReport& r, const std::string& id) {
+  for (const Metric& m : r.metrics)
+    if (m.id == id) return &m;
+  return nullptr;
+}
+
+int CountViolations(const ScoreReport& r, const std::string& kind, const std::string& step = "") {
+  int n = 0;
+  for (const Violation& v : r.violations)
+    if (v.kind == kind && (step.empty() || v.step == step)) ++n;
+  return n;
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(TraineeVariants, OrderPunchesTheHoleBeforeTheFootprintIsPrepared) {
+  const ScoreReport expert = Score("expert");
+  ASSERT_TRUE(Step(expert, "anchor_hole").passed) << Step(expert, "anchor_hole").reason;
+  EXPECT_EQ(CountViolations(expert, "order", "anchor_hole"), 0);
+
+  const ScoreReport order = Score("novice_order");
+  const StepResult& hole = Step(order, "anchor_hole");
+  EXPECT_TRUE(hole.completed) << "the hole itself is made, only out of order";
+  EXPECT_FALSE(hole.passed);
+  EXPECT_TRUE(Contains(hole.reason, "out of order")) << hole.reason;
+  EXPECT_TRUE(Contains(hole.reason, "footprint")) << hole.reason;
+  EXPECT_EQ(CountViolations(order, "order", "anchor_hole"), 1);
+  // The anchor hole is a critical step: the run fails whatever its total.
+  EXPECT_FALSE(order.passed);
+  ASSERT_FALSE(order.critical_errors.empty());
+  EXPECT_TRUE(Contains(order.critical_errors.front(), "pilot hole"))
+      << order.critical_errors.front();
+  // Everything the expert does before the hole is done as well.
+  for (const char* id : {"diagnostic", "biceps_tenotomy", "debridement", "acromioplasty"})
+    EXPECT_TRUE(Step(order, id).passed) << id << ": " << Step(order, id).reason;
+}
+
+TEST(TraineeVariants, DamageIsFlaggedOnTheProtectedMuscleAndOutsideTheTargets) {
+  const ScoreReport expert = Score("expert");
+  EXPECT_EQ(CountViolations(expert, "damage"), 0);
+  const Metric* expert_outside = FindMetric(expert, "safety.volume_outside_target");
+  ASSERT_NE(expert_outside, nullptr);
+  EXPECT_TRUE(expert_outside->pass) << expert_outside->value;
+
+  const ScoreReport damage = Score("novice_damage");
+  EXPECT_GT(CountViolations(damage, "damage"), 0) << "shaving into the muscle belly";
+  const Metric* outside = FindMetric(damage, "safety.volume_outside_target");
+  ASSERT_NE(outside, nullptr);
+  EXPECT_FALSE(outside->pass) << "bone and tissue removed outside every target: " << outside->value
+                              << " mm3";
+  EXPECT_GT(outside->value, expert_outside->value);
+  // The muscle belly is a critical protected structure: any damage fails the run.
+  EXPECT_FALSE(damage.passed);
+  EXPECT_FALSE(damage.critical_errors.empty());
+  EXPECT_LT(damage.domains.at("safety"), expert.domains.at("safety"));
+}
+
+TEST(TraineeVariants, EconomyTakesLongerPathsAndTwiceTheTime) {
+  const ScoreReport expert = Score("expert", {"expert"});
+  const ScoreReport economy = Score("novice_economy", {"expert"});
+  // The published expert/novice time ratio is about 2 (the script doubles every duration; the
+  // trainee noise adds hesitation on top).
+  const double time_ratio = RunOf("novice_economy").time_s.back() / RunOf("expert").time_s.back();
+  std::printf("economy vs expert: time %.1f s / %.1f s = %.2f\n",
+              RunOf("novice_economy").time_s.back(), RunOf("expert").time_s.back(), time_ratio);
+  EXPECT_GE(time_ratio, 1.9);
+  EXPECT_LE(time_ratio, 2.6);
+  // Economy (path over the expert's): the expert is 1 against itself; the trainee's tremor and
+  // overshoot put at least one instrument above the band (<= 2) and none below the expert.
+  int over_band = 0, instruments = 0;
+  for (const Metric& m : economy.metrics) {
+    if (m.id.rfind("motion.", 0) != 0 || !Contains(m.id, ".economy")) continue;
+    if (m.id == "motion.camera.economy") continue;  // the scope follows targets, no hand noise
+    ++instruments;
+    std::printf("  %s = %.2f%s\n", m.id.c_str(), m.value, m.pass ? "" : " (over the band)");
+    EXPECT_GT(m.value, 1.0) << m.id;
+    if (!m.pass) ++over_band;
+    const Metric* same = FindMetric(expert, m.id);
+    ASSERT_NE(same, nullptr) << m.id;
+    EXPECT_NEAR(same->value, 1.0, 1e-12) << m.id;
+  }
+  EXPECT_GE(instruments, 7);
+  EXPECT_GE(over_band, 1);
+  EXPECT_LT(economy.domains.at("efficiency"), expert.domains.at("efficiency"));
+  // The same steps are done: an economy trainee is slow, not wrong.
+  for (const char* id : {"biceps_tenotomy", "acromioplasty", "anchor_hole", "anchor"})
+    EXPECT_TRUE(Step(economy, id).completed) << id << ": " << Step(economy, id).reason;
+}
+
+}  // namespace
+}  // namespace arthrosim::scoring
