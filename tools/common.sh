@@ -7,7 +7,7 @@ ARTHROSIM_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # Everything the build, the tests and the demo need, from Debian bookworm.
 ARTHROSIM_PACKAGES=(
   build-essential cmake ninja-build pkg-config ccache
-  libeigen3-dev libsundials-dev libfcl-dev libosmesa6-dev libhdf5-dev hdf5-tools
+  libeigen3-dev libsundials-dev libfcl-dev libosmesa6-dev libhdf5-dev hdf5-tools zlib1g-dev
   libyaml-cpp-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
   libopenigtlink-dev libstb-dev fonts-dejavu-core ffmpeg chromium
   python3 python3-h5py python3-numpy python3-yaml gmsh python3-gmsh
@@ -28,8 +28,12 @@ arthrosim_install_packages() {
 }
 
 # arthrosim_build BUILD_DIR [cmake args...]: configure (once) and build everything.
+# ccache sees paths relative to the checkout's parent folder and not the build folder's path, so
+# two checkouts (a CI clone, a git worktree) share one cache; a user's own settings win.
 arthrosim_build() {
   local dir="$1"; shift
+  export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(dirname "$ARTHROSIM_ROOT")}"
+  export CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-1}"
   cmake -S "$ARTHROSIM_ROOT" -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \
         -DCMAKE_CXX_COMPILER_LAUNCHER=ccache "$@" >/dev/null
   cmake --build "$dir" -j "$(nproc)"

@@ -139,6 +139,21 @@ def footprint_center():
     return gt_point(0.0, FOOTPRINT_ML / 2)
 
 
+def single_volume(out):
+    """The tag of the one volume a boolean operation gave (`out`), after synchronizing."""
+    gmsh.model.occ.synchronize()
+    assert len(out) == 1 and out[0][0] == 3, out
+    return out[0][1]
+
+
+def boundary_triangles(vol):
+    """The meshed boundary surfaces of volume `vol` as one compact triangle mesh."""
+    table = node_table()
+    surfs = [t for _, t in gmsh.model.getBoundary([(3, vol)], oriented=False)]
+    tris = np.concatenate([elements_of(2, s, 2) for s in sorted(surfs)])
+    return compact(tris, table)
+
+
 def humerus_geometry():
     occ = gmsh.model.occ
     head = occ.addSphere(0, 0, 0, HEAD_R)
@@ -149,9 +164,7 @@ def humerus_geometry():
     shaft = occ.addCylinder(NECK_C[0], NECK_C[1], SHAFT_Z[0], 0, 0, SHAFT_Z[1] - SHAFT_Z[0],
                             NECK_R[1])
     out, _ = occ.fuse([(3, head)], [(3, gt), (3, neck), (3, shaft)])
-    occ.synchronize()
-    assert len(out) == 1 and out[0][0] == 3, out
-    return out[0][1]
+    return single_volume(out)
 
 
 def mesh_humerus():
@@ -162,10 +175,7 @@ def mesh_humerus():
     background_size("min(%r, %r + %r*sqrt((x-%r)^2+(y-%r)^2+(z-%r)^2))" % (
         H_HUM_COARSE, H_HUM_FINE, H_HUM_RAMP, fx, fy, fz))
     gmsh.model.mesh.generate(2)
-    table = node_table()
-    surfs = [t for _, t in gmsh.model.getBoundary([(3, vol)], oriented=False)]
-    tris = np.concatenate([elements_of(2, s, 2) for s in sorted(surfs)])
-    return compact(tris, table)
+    return boundary_triangles(vol)
 
 
 def acromion_geometry():
@@ -175,9 +185,7 @@ def acromion_geometry():
     b, t = np.array(SPUR_BASE), np.array(SPUR_TIP)
     spur = occ.addCone(*b, *(t - b), *SPUR_R)
     out, _ = occ.fuse([(3, plate)], [(3, spur)])
-    occ.synchronize()
-    assert len(out) == 1 and out[0][0] == 3, out
-    return out[0][1]
+    return single_volume(out)
 
 
 def mesh_acromion():
@@ -187,10 +195,7 @@ def mesh_acromion():
     gmsh.option.setNumber("Mesh.MinimumCirclePoints", 4)  # coarse like the paper's 69 nodes
     gmsh.model.mesh.generate(2)
     gmsh.option.setNumber("Mesh.MinimumCirclePoints", 7)
-    table = node_table()
-    surfs = [t for _, t in gmsh.model.getBoundary([(3, vol)], oriented=False)]
-    tris = np.concatenate([elements_of(2, s, 2) for s in sorted(surfs)])
-    return compact(tris, table)
+    return boundary_triangles(vol)
 
 
 def sector_wire(x, zc, ri, t, w):
@@ -283,9 +288,7 @@ def biceps_geometry():
     tube = [d for d in tube if d[0] == 3]
     keep = occ.addBox(BICEPS_X0, -100.0, BICEPS_Z1, 200.0, 200.0, 200.0)
     out, _ = occ.intersect(tube, [(3, keep)])
-    occ.synchronize()
-    assert len(out) == 1 and out[0][0] == 3, out
-    return out[0][1]
+    return single_volume(out)
 
 
 def mesh_biceps():

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "../physics/thread_test_util.h"
 #include "arthrosim/core/units.h"
 #include "arthrosim/physics/thread_chain.h"
 
@@ -28,39 +29,16 @@ ThreadModel MakeThread(const std::vector<Vec3>& pts) {
   return m;
 }
 
-ThreadState Rest(const ThreadModel& m) {
-  ThreadState s;
-  s.x = m.initial.nodes;
-  s.v = Points::Zero(3, m.initial.nodes.cols());
-  s.node_alive.assign(m.initial.nodes.cols(), 1);
-  return s;
-}
-
 void Run(benchmark::State& bs, const ThreadModel& model, bool swing) {
   std::vector<ThreadModel> models{model};
-  std::vector<ThreadState> states{Rest(model)};
+  std::vector<ThreadState> states{testing::RestState(model)};
   ContactSet floor;
   if (!swing) {
-    for (int i = 0; i < 60; ++i) {
-      PointContact c;
-      c.target = PointContact::Target::kThread;
-      c.index = 0;
-      c.nodes = {i, -1, -1, -1};
-      c.weights = {1, 0, 0, 0};
-      c.normal = Vec3::UnitZ();
-      c.offset_mm = 0;
-      c.stiffness_n_per_mm = 10;
-      floor.push_back(c);
-    }
+    for (int i = 0; i < 60; ++i) floor.push_back(testing::FloorContact(0, i, 10));
   }
   ThreadWorkspace ws;
   InitThreadWorkspace(models, &ws);
-  SpringSet springs(1);
-  springs[0].target = PointContact::Target::kThread;
-  springs[0].index = 0;
-  springs[0].nodes = {59, -1, -1, -1};
-  springs[0].weights = {1, 0, 0, 0};
-  springs[0].stiffness_n_per_mm = swing ? 5 : 0;
+  SpringSet springs{testing::NodeSpring(0, 59, swing ? 5 : 0)};
   const Vec3 end = model.initial.nodes.col(59);
   const Vec3 gravity(0, 0, -units::kStandardGravityMmS2);
   long step = 0;

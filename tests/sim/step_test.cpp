@@ -99,10 +99,7 @@ TEST(StepTest, ToolHeldConstraintPullsTheThreadAndFeedsBackItsForce) {
   grasp.tag = "hold";  // not "grasp": the grasper operation would release it (jaw open)
   grasp.a.kind = ConstraintEnd::Kind::kTool;
   grasp.a.index = 0;
-  grasp.b.kind = ConstraintEnd::Kind::kThread;
-  grasp.b.index = 0;
-  grasp.b.nodes = {10, -1, -1, -1};
-  grasp.b.weights = {1, 0, 0, 0};
+  grasp.b = physics::ThreadPointEnd(0, 10);  // node 10 of thread 0
   grasp.stiffness_n_per_mm = 0.5;
   physics::AddConstraint(&s, grasp);
   InputFrame f;
