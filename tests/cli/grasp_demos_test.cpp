@@ -10,9 +10,12 @@
 
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
+#include "run_state_util.h"
 
 namespace arthrosim {
 namespace {
+
+using testing::EndAt;
 
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 const std::string kScene = kSource + "/scenarios/rotator_cuff_repair.yaml";
@@ -40,26 +43,6 @@ std::vector<Event> OfKind(const std::vector<Event>& events, const std::string& k
   for (const Event& e : events)
     if (e.kind == kind) out.push_back(e);
   return out;
-}
-
-// World position of a constraint end in a frame read back from the run file.
-Vec3 EndAt(const State& s, const ConstraintEnd& e) {
-  const auto weighted = [&](const Points& x) {
-    Vec3 p = Vec3::Zero();
-    for (std::size_t k = 0; k < 4; ++k)
-      if (e.nodes[k] >= 0 && e.weights[k] != 0) p += e.weights[k] * x.col(e.nodes[k]);
-    return p;
-  };
-  switch (e.kind) {
-    case ConstraintEnd::Kind::kTool:
-      return s.tools[static_cast<std::size_t>(e.index)].pose.Apply(e.offset_mm);
-    case ConstraintEnd::Kind::kSoftBody:
-      return weighted(s.soft_bodies[static_cast<std::size_t>(e.index)].x);
-    case ConstraintEnd::Kind::kThread:
-      return weighted(s.threads[static_cast<std::size_t>(e.index)].x);
-    default:
-      return e.offset_mm;
-  }
 }
 
 const SpringConstraint* Tagged(const State& s, const std::string& tag) {

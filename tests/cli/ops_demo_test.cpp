@@ -15,9 +15,12 @@
 
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
+#include "run_state_util.h"
 
 namespace arthrosim {
 namespace {
+
+using testing::ComponentOf;
 
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 
@@ -45,32 +48,6 @@ Vec3 LandmarkMm(const std::string& name) {
   const int i = Shoulder().FindLandmark(name);
   EXPECT_GE(i, 0) << name;
   return i < 0 ? Vec3::Zero() : Shoulder().landmarks[static_cast<std::size_t>(i)].position_mm;
-}
-
-// Union-find root of node i.
-int Root(std::vector<int>* parent, int i) {
-  while ((*parent)[static_cast<std::size_t>(i)] != i) i = (*parent)[static_cast<std::size_t>(i)];
-  return i;
-}
-
-// Component label (root node) of every node of the alive tets, -1 for nodes no alive tet uses;
-// sharing a node connects.
-std::vector<int> ComponentOf(const SoftBodyState& b) {
-  std::vector<int> parent(static_cast<std::size_t>(b.x.cols()));
-  std::iota(parent.begin(), parent.end(), 0);
-  std::vector<std::uint8_t> used(parent.size(), 0);
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    if (!b.tet_alive[t]) continue;
-    for (std::int32_t n : b.tets[t]) {
-      used[static_cast<std::size_t>(n)] = 1;
-      parent[static_cast<std::size_t>(Root(&parent, n))] = Root(&parent, b.tets[t][0]);
-    }
-  }
-  std::vector<int> label(parent.size(), -1);
-  for (std::size_t i = 0; i < parent.size(); ++i) {
-    if (used[i]) label[i] = Root(&parent, static_cast<int>(i));
-  }
-  return label;
 }
 
 int Components(const SoftBodyState& b) {

@@ -16,9 +16,12 @@
 #include "arthrosim/collision/tool_bone_query.h"
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
+#include "run_state_util.h"
 
 namespace arthrosim {
 namespace {
+
+using testing::EndAt;
 
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 const std::string kScene = kSource + "/scenarios/rotator_cuff_repair.yaml";
@@ -49,26 +52,6 @@ Vec3 DetailPoint(const Event& e, const std::string& key) {
   if (at != std::string::npos)
     std::sscanf(e.detail.c_str() + at + key.size() + 1, "%lf,%lf,%lf", &p.x(), &p.y(), &p.z());
   return p;
-}
-
-// World position of a constraint end in a frame read back from the run file.
-Vec3 EndAt(const State& s, const ConstraintEnd& e) {
-  const auto weighted = [&](const Points& x) {
-    Vec3 p = Vec3::Zero();
-    for (std::size_t k = 0; k < 4; ++k)
-      if (e.nodes[k] >= 0 && e.weights[k] != 0) p += e.weights[k] * x.col(e.nodes[k]);
-    return p;
-  };
-  switch (e.kind) {
-    case ConstraintEnd::Kind::kTool:
-      return s.tools[static_cast<std::size_t>(e.index)].pose.Apply(e.offset_mm);
-    case ConstraintEnd::Kind::kSoftBody:
-      return weighted(s.soft_bodies[static_cast<std::size_t>(e.index)].x);
-    case ConstraintEnd::Kind::kThread:
-      return weighted(s.threads[static_cast<std::size_t>(e.index)].x);
-    default:
-      return e.offset_mm;
-  }
 }
 
 Vec3 Centroid(const Points& x, const std::vector<std::int32_t>& nodes) {
