@@ -200,7 +200,7 @@ void FrameSeries::Write(std::initializer_list<hsize_t> row_count, const void* da
   buf_.resize(at + bytes);
   const auto* p = static_cast<const unsigned char*>(data);
   if (exact) {
-    std::memcpy(buf_.data() + at, p, bytes);
+    if (bytes > 0) std::memcpy(buf_.data() + at, p, bytes);  // an empty row may have no data
   } else {
     CopyPadded(p, count, buf_.data() + at, row_.data() + 1, rank_ - 1, element_bytes_,
                fill_.data());

@@ -193,15 +193,17 @@ void ReadThreadSolver(const YamlSection& root, Model* m) {
 void ReadHaptics(const YamlSection& root, Model* m) {
   if (!root.Has("haptics")) return;
   HapticsOptions& h = m->haptics;
-  YamlSection s(
-      root.reader(), root.Get("haptics"), "haptics",
-      {"proxy", "coupling_stiffness_n_per_mm", "coupling_damping_n_s_per_mm", "max_force_n"});
+  YamlSection s(root.reader(), root.Get("haptics"), "haptics",
+                {"proxy", "coupling_stiffness_n_per_mm", "coupling_damping_n_s_per_mm",
+                 "max_force_n", "trapped_gap_mm", "trapped_friction"});
   h.proxy = s.Bool("proxy", h.proxy);
   h.coupling_stiffness_n_per_mm =
       s.Positive("coupling_stiffness_n_per_mm", h.coupling_stiffness_n_per_mm);
   h.coupling_damping_n_s_per_mm =
       s.NonNegative("coupling_damping_n_s_per_mm", h.coupling_damping_n_s_per_mm);
   h.max_force_n = s.Quantity("max_force_n", ranges::kHapticMaxForce, h.max_force_n);
+  h.trapped_gap_mm = s.NonNegative("trapped_gap_mm", h.trapped_gap_mm);
+  h.trapped_friction = s.NonNegative("trapped_friction", h.trapped_friction);
 }
 
 void ReadMaterials(const YamlSection& root, Model* m) {

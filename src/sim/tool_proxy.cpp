@@ -19,9 +19,13 @@ constexpr int kMaxPushes = 4;
 // Motion below this (mm) counts as arrived / stuck.
 constexpr double kArrivedMm = 1e-6;
 // Soft tissue trapped against bone: when the instrument is within kTrappedMm of bone and pressed
-// tissue toward it last step with more than kTissueTouchN, it advances at most kTissueAdvanceMm
-// per step along that push, and not at all once the reaction reaches the device maximum (the
-// hand cannot push harder than that). kTrappedMm is about the thickness of the cuff tendon.
+// tissue toward it last step with more than kTissueTouchN, it advances toward the bone at most
+// kTissueAdvanceMm per step, not at all once the reaction reaches the device maximum (the hand
+// cannot push harder than that), and never closer to bone than haptics.trapped_gap_mm: the
+// tissue between is pressed to at most that thickness, never crushed through. Along the bone it
+// slides only where the hand's sideways pull exceeds haptics.trapped_friction times its push
+// toward the bone (Coulomb's cone), so tissue pressed against bone is not dragged away by a hand
+// that pushes into it. kTrappedMm is about the thickness of the cuff tendon.
 constexpr double kTrappedMm = 6.0;
 constexpr double kTissueTouchN = 0.05;
 constexpr double kTissueAdvanceMm = 0.5;
@@ -84,8 +88,38 @@ Pose StartPose(const Model& model, const ToolState& tool, ProxyWorkspace* ws) {
   return start;
 }
 
-// The handle position the proxy may head for this step when it pressed on soft tissue last
-// step: the advance along the direction the tissue was pushed is bounded (see kTissueAdvanceMm).
+// The earlier rule (haptics.trapped_gap_mm = 0): the advance along the way the tissue was pushed
+// is bounded per step and stops at the device maximum; no floor, free sliding.
+Vec3 AdvanceLimitedGoal(const Model& model, double magnitude, const Vec3& into, const Pose& from,
+                        const Vec3& handle) {
+  const Vec3 d = handle - from.position_mm;
+  const double advance = d.dot(into);
+  const double allowed = magnitude >= model.haptics.max_force_n ? 0.0 : kTissueAdvanceMm;
+  if (advance <= allowed) return handle;
+  return handle - (advance - allowed) * into;
+}
+
+// The trapped-tissue rule: the way toward the bone (along its normal at the nearest point) is
+// bounded per step and by the floor haptics.trapped_gap_mm, the way along it held by friction.
+Vec3 FloorAndFrictionGoal(const Model& model, double magnitude, const collision::ToolBoneHit& near,
+                          const Pose& from, const Vec3& handle) {
+  const HapticsOptions& h = model.haptics;
+  const Vec3& out = near.normal;  // away from the bone
+  const Vec3 d = handle - from.position_mm;
+  const double press = -d.dot(out);  // the hand's way toward the bone, mm
+  if (press <= 0) return handle;     // drawn away from the bone: free
+  const Vec3 along = d + press * out;
+  const double floor_mm = std::max(0.0, near.clearance_mm - h.trapped_gap_mm);
+  const double allowed = magnitude >= h.max_force_n ? 0.0 : std::min(kTissueAdvanceMm, floor_mm);
+  const double along_mm = along.norm();
+  const double slide_mm = std::max(0.0, along_mm - h.trapped_friction * press);
+  Vec3 goal = from.position_mm - std::min(press, allowed) * out;
+  if (along_mm > 0) goal += along * (slide_mm / along_mm);
+  return goal;
+}
+
+// The handle position the proxy may head for this step when it pressed soft tissue toward bone
+// last step (see kTrappedMm); the handle itself otherwise.
 Vec3 TissueLimitedGoal(const Model& model, const ToolState& prev, const Pose& from,
                        const Vec3& handle, ProxyWorkspace* ws) {
   if (prev.instrument < 0) return handle;
@@ -97,11 +131,10 @@ Vec3 TissueLimitedGoal(const Model& model, const ToolState& prev, const Pose& fr
   if (near.bone < 0 || near.clearance_mm >= kTrappedMm || into.dot(near.normal) >= 0) {
     return handle;  // no bone behind the tissue: the tissue can give way
   }
-  const Vec3 d = handle - from.position_mm;
-  const double advance = d.dot(into);
-  const double allowed = magnitude >= model.haptics.max_force_n ? 0.0 : kTissueAdvanceMm;
-  if (advance <= allowed) return handle;
-  return handle - (advance - allowed) * into;
+  if (model.haptics.trapped_gap_mm <= 0) {
+    return AdvanceLimitedGoal(model, magnitude, into, from, handle);
+  }
+  return FloorAndFrictionGoal(model, magnitude, near, from, handle);
 }
 
 // Follows the handle from `from` by conservative advancement: steps no longer than the current

@@ -228,6 +228,11 @@ struct HapticsOptions {
   double coupling_stiffness_n_per_mm = 1.0;    ///< virtual coupling spring, N/mm
   double coupling_damping_n_s_per_mm = 0.002;  ///< virtual coupling damper, N*s/mm
   double max_force_n = 25.0;                   ///< clamp of the fed-back force magnitude, N
+  /// Tissue pressed against bone under the instrument is kept at least this thick, mm; the
+  /// instrument slides along the bone there only beyond trapped_friction (docs/haptics.md).
+  /// 0: the earlier rule (advance along the push bounded per step, no floor, no friction).
+  double trapped_gap_mm = 1.0;
+  double trapped_friction = 0.5;  ///< Coulomb coefficient of that sliding (instrument on tissue)
 };
 
 /// Run options.
