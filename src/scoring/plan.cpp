@@ -144,7 +144,7 @@ Criterion ReadCriterion(const Map& parent, const YAML::Node& n, const std::strin
 PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field,
                   const Model* model) {
   const Map m(root.reader(), n, field,
-              {"id", "title", "instruments", "operation", "target", "complete", "requires",
+              {"id", "title", "instruments", "operation", "also", "target", "complete", "requires",
                "time_budget", "critical"});
   PlanStep s;
   s.id = m.String("id");
@@ -152,6 +152,7 @@ PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field
   s.instruments = m.Strings("instruments");
   if (s.instruments.empty()) m.Fail(n, m.Field("instruments"), "list at least one instrument");
   s.operation = m.String("operation", "");
+  s.also_events = m.Strings("also");
   if (m.Has("target")) {
     const Map t(root.reader(), m.Get("target"), m.Field("target"), {"landmark", "region"});
     s.target_landmark = t.String("landmark", "");

@@ -38,6 +38,8 @@ bool Allowed(const PlanStep& step, const std::string& tool) {
 bool IsStepAction(const PlanStep& step, const Event& e) {
   if (!Allowed(step, e.tool)) return false;
   bool related = !step.operation.empty() && e.kind == step.operation;
+  related = related || std::find(step.also_events.begin(), step.also_events.end(), e.kind) !=
+                           step.also_events.end();
   for (const Criterion& c : step.complete)
     related = related || (c.kind == Criterion::Kind::kEvent && e.kind == c.event);
   return related;

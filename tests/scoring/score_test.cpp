@@ -134,6 +134,24 @@ TEST(Score, WrongInstrumentIsFlagged) {
   EXPECT_FALSE(Step(r, "hole").completed);
 }
 
+// An event kind a step lists under `also` is that step's, by its instruments: the same hole by
+// the grasper is not a wrong-instrument action once the grasper's step says it makes holes.
+TEST(Score, EventsAStepListsUnderAlsoAreItsOwn) {
+  SynthSpec spec;
+  spec.hole_by_grasper = true;
+  const std::string path = testing::TestDir("also") + "/run.h5";
+  testing::WriteSynthRun(path, spec);
+  const Model model = testing::MakeSynthModel();
+  std::string text = testing::SynthPlanText();
+  const std::string reduce = "    instruments: [grasper]\n";
+  ASSERT_NE(text.find(reduce), std::string::npos);
+  text.replace(text.find(reduce), reduce.size(), reduce + "    also: [hole]\n");
+  const Plan plan = LoadPlanFromText(text, "synth.yaml", &model);
+  const ScoreReport r = Evaluate(plan, ReadRunData(path, model), {});
+  EXPECT_FALSE(HasViolation(r, "wrong_instrument"));
+  EXPECT_EQ(Find(r, "plan.wrong_instrument_actions").value, 0.0);
+}
+
 TEST(Score, ForceOnAProtectedStructureIsCritical) {
   SynthSpec spec;
   spec.muscle_touch_force_n = 5;

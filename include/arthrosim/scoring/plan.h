@@ -52,8 +52,12 @@ inline constexpr const char* kCameraName = "camera";
 struct PlanStep {
   std::string id;
   std::string title;
-  std::vector<std::string> instruments;     ///< instrument names allowed for this step
-  std::string operation;                    ///< the event kind of the step's action ("" = none)
+  std::vector<std::string> instruments;  ///< instrument names allowed for this step
+  std::string operation;                 ///< the event kind of the step's action ("" = none)
+  /// Other event kinds this step's instruments make as part of its operation (the scorpion
+  /// needle's tissue hold, `grasp`, while it passes a suture): the step's actions, not actions
+  /// with a wrong instrument.
+  std::vector<std::string> also_events;
   std::string target_landmark;              ///< "" if none
   std::string target_region;                ///< "" if none
   std::vector<Criterion> complete;          ///< all must hold
