@@ -25,21 +25,6 @@ concept EigenDense = requires(const T& t) {
   t.data();
 };
 
-// The most members any State struct has (State itself: 15).
-constexpr std::size_t kMaxMembers = 32;
-
-/// Pointers to the members of `object` in table order (nullptr entries when object is null).
-template <class T>
-std::size_t MemberPointers(const T* object, std::array<const void*, kMaxMembers>* out) {
-  std::size_t n = 0;
-  if (object == nullptr) return 0;
-  VisitFields(*object, [&](const auto& member, const FieldInfo&) {
-    if (n >= kMaxMembers) throw std::logic_error("state_bytes: raise kMaxMembers");
-    (*out)[n++] = &member;
-  });
-  return n;
-}
-
 /// The elements of *r that v's are coded against: all of r's when it has v's row count, else
 /// none.
 template <class T>
@@ -52,8 +37,8 @@ std::pair<const typename T::Scalar*, std::size_t> ReferenceElements(const T& v, 
 /// *r (nullptr when r is null).
 template <class T, class F>
 void ForEachMemberWithRef(T& v, const std::remove_const_t<T>* r, F&& f) {
-  std::array<const void*, kMaxMembers> refs{};
-  const std::size_t n_ref = MemberPointers(r, &refs);
+  std::array<const void*, kMaxStateFields> refs{};
+  const std::size_t n_ref = FieldAddresses(r, &refs);
   std::size_t i = 0;
   VisitFields(v, [&](auto& member, const FieldInfo&) {
     using M = std::decay_t<decltype(member)>;

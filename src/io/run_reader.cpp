@@ -1,6 +1,7 @@
 #include "arthrosim/io/run_reader.h"
 
 #include <algorithm>
+#include <array>
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
@@ -83,16 +84,15 @@ void ReadValue(const h5::Dataset& ds, const detail::ValueType& type, hsize_t t, 
 template <class S>
 void ReadFields(const FieldsIn& in, hsize_t t, int slot, hsize_t nodes, hsize_t elements, S* out) {
   const S fresh{};
-  std::vector<const void*> defaults;  // the kNone fields of `fresh`, in table order
-  VisitFields(fresh, [&](const auto& value, const FieldInfo& info) {
-    if (info.store == FieldStore::kNone) defaults.push_back(&value);
-  });
+  std::array<const void*, kMaxStateFields> defaults{};
+  FieldAddresses(&fresh, &defaults);
   std::size_t i = 0;
-  std::size_t none = 0;
+  std::size_t member = 0;
   VisitFields(*out, [&](auto& value, const FieldInfo& info) {
     using T = std::decay_t<decltype(value)>;
+    const auto* fresh_value = static_cast<const T*>(defaults[member++]);
     if (info.store == FieldStore::kNone) {  // only in checkpoints (run_checkpoint.h)
-      value = *static_cast<const T*>(defaults[none++]);
+      value = *fresh_value;
       return;
     }
     if (info.store != FieldStore::kFrame) return;

@@ -35,14 +35,18 @@ bool Allowed(const PlanStep& step, const std::string& tool) {
          step.instruments.end();
 }
 
+bool StepActsBy(const PlanStep& step, const std::string& kind) {
+  if (kind.empty()) return false;
+  if (kind == step.operation) return true;
+  const auto& also = step.also_events;
+  if (std::find(also.begin(), also.end(), kind) != also.end()) return true;
+  return std::any_of(step.complete.begin(), step.complete.end(), [&](const Criterion& c) {
+    return c.kind == Criterion::Kind::kEvent && c.event == kind;
+  });
+}
+
 bool IsStepAction(const PlanStep& step, const Event& e) {
-  if (!Allowed(step, e.tool)) return false;
-  bool related = !step.operation.empty() && e.kind == step.operation;
-  related = related || std::find(step.also_events.begin(), step.also_events.end(), e.kind) !=
-                           step.also_events.end();
-  for (const Criterion& c : step.complete)
-    related = related || (c.kind == Criterion::Kind::kEvent && e.kind == c.event);
-  return related;
+  return Allowed(step, e.tool) && StepActsBy(step, e.kind);
 }
 
 std::string EventMismatch(const Model& model, const Criterion& c, const Event& e) {

@@ -21,8 +21,12 @@ inline constexpr double kNoTime = std::numeric_limits<double>::quiet_NaN();
 /// Whether the plan lets `tool` (instrument name, or "camera") act in `step`.
 bool Allowed(const PlanStep& step, const std::string& tool);
 
-/// Whether `e` is an action of `step`: its operation or one of its criteria's event kinds, by an
-/// instrument the step allows. A step's first such event is its first action.
+/// Whether events of `kind` are the actions of `step`: its operation, an event its instruments
+/// make as part of it (`also`), or one of its criteria's event kinds.
+bool StepActsBy(const PlanStep& step, const std::string& kind);
+
+/// Whether `e` is an action of `step` (StepActsBy) by an instrument the step allows. A step's
+/// first such event is its first action.
 bool IsStepAction(const PlanStep& step, const Event& e);
 
 /// Why an event of the criterion's kind does not satisfy criterion `c` ("" if it does): wrong

@@ -231,12 +231,7 @@ void EvaluateInstrumentUse(const Plan& plan, const RunData& run, ScoreReport* re
     bool planned = false, allowed = false;
     std::string step_id;
     for (const PlanStep& step : plan.steps) {
-      bool uses = step.operation == e.kind ||
-                  std::find(step.also_events.begin(), step.also_events.end(), e.kind) !=
-                      step.also_events.end();
-      for (const Criterion& c : step.complete)
-        uses = uses || (c.kind == Criterion::Kind::kEvent && c.event == e.kind);
-      if (!uses) continue;
+      if (!StepActsBy(step, e.kind)) continue;
       if (!planned) step_id = step.id;
       planned = true;
       allowed = allowed || Allowed(step, e.tool);

@@ -7,6 +7,8 @@
 //
 // A visitor is called as v(member, info) for every member, in declaration order; `S` is the
 // struct, const or not (the reader fills a State through the same visitors).
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <stdexcept>
 #include <type_traits>
@@ -235,6 +237,22 @@ void VisitFields(S& s, V&& v) {
   v(s.anchors, FieldInfo{"anchors", "", FieldStore::kRecords});
   v(s.script_push, FieldInfo{"script_push", "", FieldStore::kNone});
   v(s.factor_switch_step, FieldInfo{"factor_switch_step", "", FieldStore::kNone});
+}
+
+/// The most members any State struct has (State itself: 15).
+constexpr std::size_t kMaxStateFields = 32;
+
+/// Addresses of the members of `object` in table order, into `out`; returns how many (0 when
+/// object is null). Pairs a struct's members with another object's of the same type.
+template <class T>
+std::size_t FieldAddresses(const T* object, std::array<const void*, kMaxStateFields>* out) {
+  std::size_t n = 0;
+  if (object == nullptr) return 0;
+  VisitFields(*object, [&](const auto& member, const FieldInfo&) {
+    if (n >= kMaxStateFields) throw std::logic_error("FieldAddresses: raise kMaxStateFields");
+    (*out)[n++] = &member;
+  });
+  return n;
 }
 
 /// The table's entry for `member` of `object` (e.g. FieldOf(tri_mesh, tri_mesh.tris).name is
