@@ -66,6 +66,8 @@ struct Series {
   double factor_ms_max = 0;         // most factor work in one step
   std::vector<std::uint8_t> holds;  // per timed step: bit s set = slot s holds `instrument`
   double cg_it_max = 0;
+  int retried_steps = 0;      // steps whose solve diverged and was redone in substeps
+  double max_node_speed = 0;  // fastest soft-tissue or thread node after any step, mm/s
 };
 
 // Times `steps` steps of the trajectory (< 0: until it is finished, at most 100 000) after a
@@ -108,6 +110,8 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     s.output.push_back(output_ms);
     s.cg_it.push_back(t.soft.cg_iterations);
     s.cg_it_max = std::max(s.cg_it_max, static_cast<double>(t.soft.cg_iterations));
+    s.retried_steps += t.substeps > 1 ? 1 : 0;
+    s.max_node_speed = std::max(s.max_node_speed, t.max_node_speed_mm_s);
     std::uint8_t holds = 0;
     for (int slot = 0; slot < kToolSlots; ++slot) {
       if (instrument >= 0 && state.tools[slot].instrument == instrument) holds |= 1u << slot;
@@ -162,6 +166,8 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
              s.refactors ? s.refactor_ms / s.refactors : 0.0);
   fmt::print("factor_work_steps={}\nfactor_work_ms_max={:.3f}\n", s.factor_steps, s.factor_ms_max);
   fmt::print("step_ms_p99={:.3f}\nstep_ms_max={:.3f}\n", Quantile(s.step, 0.99), Max(s.step));
+  fmt::print("solver_retry_steps={}\nmax_node_speed_mm_s={:.1f}\n", s.retried_steps,
+             s.max_node_speed);
 }
 
 // The abusive replay: a tool swept through the anatomy (mean, p99 and worst step beside the
@@ -182,6 +188,8 @@ void PrintAbusive(const Model& model, const std::string& trajectory) {
   fmt::print("abusive_refactors_per_1000_steps={:.1f}\n",
              s.step.empty() ? 0.0 : 1000.0 * s.refactors / static_cast<double>(s.step.size()));
   fmt::print("abusive_factor_work_ms_max={:.3f}\n", s.factor_ms_max);
+  fmt::print("abusive_solver_retry_steps={}\nabusive_max_node_speed_mm_s={:.1f}\n", s.retried_steps,
+             s.max_node_speed);
 }
 
 // One pair of figures per operation trajectory (ops_dir/<instrument>.yaml): the median and the

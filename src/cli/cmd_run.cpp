@@ -156,7 +156,18 @@ int Run(const RunArgs& a) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
     source->SaveControllers(&state);
-    sim::Step(model, frame, &state, &ws);
+    try {
+      sim::Step(model, frame, &state, &ws);
+    } catch (const sim::SimulationError& e) {
+      // The step cannot be solved: what was written stays (frames and checkpoints up to the
+      // last step), closed; no checkpoint of the half-done step.
+      bar.Finish();
+      writer.Close();
+      if (video) video->Finish();
+      fmt::print(stderr, "error: {}\n{} holds {} frames up to step {}\n", e.what(), out,
+                 writer.frames(), e.step() - 1);
+      return kExitSimulationFailed;
+    }
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());

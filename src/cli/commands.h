@@ -1,6 +1,7 @@
 #pragma once
 // One function per subcommand. Each returns the process exit code:
-// 0 ok, 1 a check failed (compare/score), 2 bad input or usage.
+// 0 ok, 1 a check failed (compare/score), 2 bad input or usage, 3 the simulation could not
+// continue (a step diverged even in substeps: sim::SimulationError), 130 interrupted.
 #include <CLI/CLI.hpp>
 
 namespace arthrosim::cli {
@@ -8,6 +9,7 @@ namespace arthrosim::cli {
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitCheckFailed = 1;
 inline constexpr int kExitBadInput = 2;
+inline constexpr int kExitSimulationFailed = 3;
 
 /// Registers the subcommand on app; the callback stores its exit code in *exit_code.
 void AddRunCommand(CLI::App* app, int* exit_code);

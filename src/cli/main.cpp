@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/sim/solve_guard.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
@@ -24,6 +25,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitBadInput;
+  } catch (const arthrosim::sim::SimulationError& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return kExitSimulationFailed;
   } catch (const arthrosim::InputError& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return kExitBadInput;

@@ -24,6 +24,10 @@ inline constexpr QuantityRange kDensity{0, true, 1e5, 500, 3000, "kg/m^3"};
 inline constexpr QuantityRange kRayleighMass{0, false, 1e4, 0, 100, "1/s"};
 inline constexpr QuantityRange kRayleighStiffness{0, false, 10, 0, 0.1, "s"};
 
+// Divergence guard: tissue and thread in an arthroscopy move at well under 1 m/s; below
+// 0.1 m/s a fast hand would be taken for a diverged solve, beyond 1 km/s nothing is caught.
+inline constexpr QuantityRange kDivergenceSpeed{0, true, 1e6, 1e2, 1e5, "mm/s"};
+
 // Suture thread. USP sizes 5-0 .. 5 are 0.1-0.7 mm across.
 inline constexpr QuantityRange kThreadDiameter{0, true, 20, 0.05, 2, "mm"};
 inline constexpr QuantityRange kThreadStretchStiffness{0, true, 1e9, 10, 1e6, "N"};

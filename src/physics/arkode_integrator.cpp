@@ -108,14 +108,14 @@ struct ArkodeBridge {
 ArkodeIntegrator::ArkodeIntegrator() : impl_(new Impl) {}
 ArkodeIntegrator::~ArkodeIntegrator() { delete impl_; }
 
-SoftStepStats ArkodeIntegrator::Step(SoftStages* system, const Model& model, ContactSet* contacts,
-                                     SpringSet* springs, State* state) {
+SoftStepStats ArkodeIntegrator::Step(SoftStages* system, const Model& model, double h_s,
+                                     ContactSet* contacts, SpringSet* springs, State* state) {
   using Clock = std::chrono::steady_clock;
   const auto t_start = Clock::now();
   Impl& im = *impl_;
   const Eigen::Index half = 3 * system->stage_slots();
   const sunindextype n = 2 * static_cast<sunindextype>(half);
-  const double h = model.options.dt_s;
+  const double h = h_s;
   if (im.size != n) {
     im.Release();
     Check(SUNContext_Create(nullptr, &im.ctx), "SUNContext_Create");

@@ -363,13 +363,28 @@ void SoftSystem::FillOutputs(const Model& model, ContactSet* contacts, SpringSet
 
 SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringSet* springs,
                                State* state) {
+  SoftStepStats stats = Advance(model, model.options.dt_s, contacts, springs, state);
+  if (stats.anchor_moved) RequestFactor(state);
+  return stats;
+}
+
+void SoftSystem::RequestFactorAfter(const SoftStepStats& stats, State* state) {
+  if (stats.anchor_moved && state->factor_switch_step < 0) RequestFactor(state);
+}
+
+SoftStepStats SoftSystem::Advance(const Model& model, double h_s, ContactSet* contacts,
+                                  SpringSet* springs, State* state) {
   if (model.solver.integrator == Integrator::kArkode) {
     if (!arkode_) arkode_ = std::make_unique<ArkodeIntegrator>();
-    return arkode_->Step(this, model, contacts, springs, state);
+    return arkode_->Step(this, model, h_s, contacts, springs, state);
   }
   SoftStepStats stats;
   const auto t_start = Clock::now();
-  const double h = model.options.dt_s;
+  const double h = h_s;
+  // The preconditioner is always the one of the scenario's step: a shorter (sub)step solves
+  // with it too (a worse but still symmetric positive definite preconditioner), so the factor
+  // state machine in State never depends on whether a step was split.
+  const double h_factor = model.options.dt_s;
   Gather(*state);
   ComputeRotationsAndForces(x_);
   AddGravity(model);
@@ -379,7 +394,8 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   const bool assembled = product_ == SystemProduct::kAssembled;
   AssembleStiffness(h, h, assembled);
   BuildPointTerms(model, x_, contacts, springs, true);
-  BuildPreconditioner(h, state);
+  BuildPreconditioner(h_factor, state);
+  if (h != h_factor) BuildBlockJacobi(h);  // the block-Jacobi fallback, for this h
   // b = h f - h (h + beta) K v - h alpha M v - h^2 C v on free slots.
   ApplyStiffness(v_, &tmp_);
   ApplyPointTerms(h * h, v_, &tmp_);
@@ -444,9 +460,9 @@ SoftStepStats SoftSystem::Step(const Model& model, ContactSet* contacts, SpringS
   FillOutputs(model, contacts, springs);
   if (preconditioner_ == Preconditioner::kRestCholesky && refactor_iterations_ > 0 &&
       cg.iterations > refactor_iterations_ && state->factor_switch_step < 0) {
-    // The factor has drifted from the current rotations (or mesh): request one of the mesh and
-    // positions at the end of this step, used refactor_lag_ steps from now.
-    RequestFactor(state);
+    // The factor has drifted from the current rotations (or mesh): the caller requests one of
+    // the mesh and positions at the end of the step (RequestFactorAfter), used refactor_lag_
+    // steps from now.
     stats.anchor_moved = true;
   }
   stats.update_ms = MsSince(t0);

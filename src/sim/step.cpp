@@ -1,12 +1,15 @@
 // The step, as a table of contents: each stage is one named function below, in order.
 #include "arthrosim/sim/step.h"
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <chrono>
 
 #include "arthrosim/core/units.h"
 #include "arthrosim/instruments/instruments.h"
 #include "arthrosim/physics/constraints.h"
+#include "arthrosim/sim/solve_guard.h"
 #include "arthrosim/sim/tool_kinematics.h"
 #include "arthrosim/sim/tool_proxy.h"
 
@@ -50,20 +53,79 @@ void BuildConstraintSprings(const State& state, Workspace* ws) {
   physics::BuildPointSprings(state, &ws->springs);
 }
 
-// Soft tissue: one linearised implicit Euler step of every soft body (FEM + CG).
-void SolveSoftTissue(const Model& model, State* state, Workspace* ws) {
+// Soft tissue: one linearised implicit Euler (sub)step of h_s of every soft body (FEM + CG).
+physics::SoftStepStats SolveSoftTissue(const Model& model, double h_s, State* state,
+                                       Workspace* ws) {
   const auto t0 = Clock::now();
-  ws->timings.soft = ws->soft.Step(model, &ws->contacts.contacts, &ws->springs, state);
-  ws->timings.soft_ms = MsSince(t0);
+  ws->timings.soft = ws->soft.Advance(model, h_s, &ws->contacts.contacts, &ws->springs, state);
+  ws->timings.soft_ms += MsSince(t0);
+  return ws->timings.soft;
 }
 
 // Suture threads: implicit mass-spring chains with self-collision and the speed cap.
-void SolveThreads(const Model& model, State* state, Workspace* ws) {
+void SolveThreads(const Model& model, double h_s, State* state, Workspace* ws) {
   const auto t0 = Clock::now();
-  physics::StepThreads(model.threads, model.options.dt_s, model.options.gravity_mm_s2,
-                       &ws->contacts.contacts, &ws->springs, &state->threads, &ws->threads);
+  physics::StepThreads(model.threads, h_s, model.options.gravity_mm_s2, &ws->contacts.contacts,
+                       &ws->springs, &state->threads, &ws->threads);
   ws->timings.thread = ws->threads.last;
-  ws->timings.thread_ms = MsSince(t0);
+  ws->timings.thread_ms += MsSince(t0);
+}
+
+// Records that this step's solve diverged and is redone in `substeps` substeps.
+void RecordSolverRetry(const Model& model, const SolveHealth& health, int substeps, State* state) {
+  const bool soft = health.kind == ConstraintEnd::Kind::kSoftBody;
+  const auto b = static_cast<std::size_t>(std::max(health.body, 0));
+  std::string body;
+  if (health.body >= 0) body = soft ? model.soft_bodies[b].name : model.threads[b].name;
+  state->events.push_back(
+      Event{state->step + 1, state->time_s + model.options.dt_s, "solver_retry", "", body,
+            fmt::format("substeps={} node={} speed_mm_s={:.6g} finite={}", substeps, health.node,
+                        health.max_speed_mm_s, health.finite ? 1 : 0),
+            Vec3::Zero()});
+}
+
+// Soft tissue and threads over the step, guarded against divergence: a solve that leaves a
+// non-finite value or a node faster than solver.divergence_speed is undone and done again in
+// 2, 4, ... substeps from the same start (contacts detected afresh), with a `solver_retry`
+// event; a step that diverges even in solver.divergence_max_substeps substeps is undone and
+// stops the run (SimulationError). The preconditioner factor is requested only once the step
+// is sound. docs/numerical-guards.md.
+void SolveDeformables(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
+                      State* state, Workspace* ws) {
+  ws->timings.soft_ms = 0;
+  ws->timings.thread_ms = 0;
+  SaveSolveStart(*state, &ws->solve_start);
+  for (int substeps = 1;; substeps *= 2) {
+    const double h = model.options.dt_s / substeps;
+    bool factor_due = false;
+    physics::SoftStepStats soft;
+    for (int k = 0; k < substeps; ++k) {
+      soft = SolveSoftTissue(model, h, state, ws);
+      factor_due = factor_due || soft.anchor_moved;
+      SolveThreads(model, h, state, ws);
+    }
+    const SolveHealth health = CheckSolve(*state);
+    ws->timings.substeps = substeps;
+    ws->timings.max_node_speed_mm_s = health.max_speed_mm_s;
+    if (!health.Diverged(model)) {
+      soft.anchor_moved = factor_due;
+      ws->soft.RequestFactorAfter(soft, state);
+      return;
+    }
+    RestoreSolveStart(ws->solve_start, state);
+    if (2 * substeps > model.solver.divergence_max_substeps) {
+      throw SimulationError(
+          state->step + 1,
+          fmt::format("step {} (t = {:.4f} s): the deformable solve diverged ({}) even in {} "
+                      "substeps (solver.divergence_max_substeps); the state is kept as at the "
+                      "step's start",
+                      state->step + 1, state->time_s + model.options.dt_s,
+                      DescribeWorstNode(model, health), substeps));
+    }
+    RecordSolverRetry(model, health, 2 * substeps, state);
+    DetectContacts(model, *state, prev_tools, ws);  // contact outputs of the undone solve reset
+    BuildConstraintSprings(*state, ws);
+  }
 }
 
 // Sliding constraint ends: threads run through stitches, knots and the hook's bend where the
@@ -137,8 +199,7 @@ void Step(const Model& model, const InputFrame& input, State* state, Workspace* 
   ws->timings.kinematics_ms = MsSince(t0);
   DetectContacts(model, *state, prev_tools, ws);
   BuildConstraintSprings(*state, ws);
-  SolveSoftTissue(model, state, ws);
-  SolveThreads(model, state, ws);
+  SolveDeformables(model, prev_tools, state, ws);
   SlideConstraints(state);
   AccumulateToolForces(model, prev_tools, *ws, state);
   AdvanceTime(model, state);

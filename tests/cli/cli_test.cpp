@@ -105,6 +105,22 @@ TEST_F(CliTest, InfoSummarisesARun) {
   EXPECT_NE(r.output.find("frames: 6"), std::string::npos) << r.output;
 }
 
+// A step that diverges even in substeps (docs/numerical-guards.md) stops the run with exit 3,
+// a message naming the step and the node, and a closed file holding every step before it.
+TEST_F(CliTest, DivergedRunStopsWithExitThreeAndAReadableFile) {
+  const std::string scenario = kSource + "/tests/testdata/scenes/small_diverge.yaml";
+  const Result r = Exec("run " + scenario + " --steps 50 --quiet --out " + P("d.h5"));
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_NE(r.output.find("error: step 4 (t = 0.0800 s): the deformable solve diverged (soft "
+                          "body 'block' node "),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("holds 4 frames up to step 3"), std::string::npos) << r.output;
+  const Result info = Exec("info " + P("d.h5"));
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("frames: 4 (steps 0 .. 3)"), std::string::npos) << info.output;
+}
+
 TEST_F(CliTest, KilledRunLeavesAReadableFile) {
   const std::string out = P("killed.h5");
   // a long run (flushes every 0.1 simulated s in this scenario)

@@ -169,6 +169,13 @@ struct SolverOptions {
   /// than refactor_iterations) is prepared in equal parts over steps n + 1 ... n + lag - 1 and
   /// used from step n + lag on, whatever the wall clock (1 = the next step, all at once).
   int refactor_lag_steps = 1;
+  /// Divergence guard (sim::SolveDeformables): after a step's solve, a non-finite value or a
+  /// soft-tissue or thread node faster than this means the solve diverged, mm/s. No tissue in
+  /// an arthroscopy moves at 10 m/s; a diverged linearised solve gives 1e5 mm/s and more.
+  double divergence_speed_mm_s = 1e4;
+  /// A diverged step is undone and solved again in 2, 4, ... substeps, up to this many; a step
+  /// that still diverges stops the run with a message (sim::SimulationError).
+  int divergence_max_substeps = 16;
 };
 
 /// Contact parameters (scenario section `contact:`, all optional; docs/contact-model.md explains

@@ -21,10 +21,10 @@ class ArkodeIntegrator {
   ArkodeIntegrator(const ArkodeIntegrator&) = delete;
   ArkodeIntegrator& operator=(const ArkodeIntegrator&) = delete;
 
-  /// One step of model.options.dt_s for all soft bodies of `system` (already built).
-  /// The integrator is re-initialised every step, so the result depends on State only.
-  /// Throws std::runtime_error if SUNDIALS reports a failure.
-  SoftStepStats Step(SoftStages* system, const Model& model, ContactSet* contacts,
+  /// One step of h_s seconds (model.options.dt_s or a substep of it) for all soft bodies of
+  /// `system` (already built). The integrator is re-initialised every step, so the result
+  /// depends on State only. Throws std::runtime_error if SUNDIALS reports a failure.
+  SoftStepStats Step(SoftStages* system, const Model& model, double h_s, ContactSet* contacts,
                      SpringSet* springs, State* state);
 
   struct Impl;  // SUNDIALS objects and callback context (public for the C callbacks)

@@ -68,7 +68,18 @@ class SoftSystem final : public SoftStages {
   /// Advances every soft body by one step of model.options.dt_s with the integrator of
   /// model.solver. Contacts and springs targeting soft bodies enter the implicit system; their
   /// force outputs are filled. Does not advance state->time_s or state->step.
+  /// Then, when the solve needed more than solver.refactor_iterations CG iterations, requests
+  /// a new preconditioner factor of the end-of-step positions (Advance + RequestFactorAfter).
   SoftStepStats Step(const Model& model, ContactSet* contacts, SpringSet* springs, State* state);
+
+  /// One step of h_s seconds (the scenario's dt or a substep of it), without requesting a new
+  /// factor: stats.anchor_moved says one is due. The preconditioner is the one of the
+  /// scenario's dt whatever h_s, so splitting a step never changes the factor state in State.
+  SoftStepStats Advance(const Model& model, double h_s, ContactSet* contacts, SpringSet* springs,
+                        State* state);
+  /// Requests the factor a step's Advance found due (stats.anchor_moved), from the positions
+  /// in *state; nothing when none is due or one is already being prepared.
+  void RequestFactorAfter(const SoftStepStats& stats, State* state);
 
   /// Static equilibrium by a direct sparse solve (Eigen SimplicialLDLT) of the corotational
   /// system linearised at the current positions, repeated `iterations` times (1 from the rest

@@ -9,6 +9,7 @@
 #include "arthrosim/physics/contact.h"
 #include "arthrosim/physics/soft_system.h"
 #include "arthrosim/physics/thread_chain.h"
+#include "arthrosim/sim/solve_guard.h"
 #include "arthrosim/sim/tool_proxy.h"
 
 namespace arthrosim::sim {
@@ -21,6 +22,8 @@ struct StepTimings {
   double thread_ms = 0;
   double instruments_ms = 0;
   double total_ms = 0;
+  int substeps = 1;                ///< deformable solves of the step (> 1: a diverged solve redone)
+  double max_node_speed_mm_s = 0;  ///< fastest soft-tissue or thread node after the solve
   physics::SoftStepStats soft;
   physics::ThreadStepStats thread;
 };
@@ -35,6 +38,7 @@ struct Workspace {
   physics::SpringSet springs;                    ///< runtime constraints, one per deformable end
   ProxyWorkspace proxy;                          ///< tool proxies: bone trees, work lists
   instruments::InstrumentScratch instrument_scratch;  ///< work lists of the instrument actions
+  SolveStart solve_start;  ///< what the deformable solves write, kept to undo a diverged one
   StepTimings timings;
 };
 
