@@ -159,6 +159,8 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("solve_ms_median={:.3f}\n", Median(s.solve));
   fmt::print("thread_ms_median={:.3f}\n", Median(s.thread));
   fmt::print("output_ms_median={:.3f}\n", Median(s.output));
+  // the flushes: once per output.flush_interval, the worst output steps
+  fmt::print("output_ms_mean={:.3f}\noutput_ms_max={:.3f}\n", Mean(s.output), Max(s.output));
   fmt::print("cg_iterations_mean={:.2f}\n", Mean(s.cg_it));
   fmt::print("cg_residual_final={:.3g}\n", s.last_residual);
   fmt::print("step_ms_mean={:.3f}\n", Mean(s.step));

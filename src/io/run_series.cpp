@@ -41,22 +41,36 @@ void ChunkCodec::Init(hid_t mem_type, hid_t file_type, int deflate) {
 }
 
 namespace {
-// One deflate state per level, shared by every dataset of this thread (~256 KiB each: one per
-// dataset was 25 MB for the shoulder scene's ~100 datasets).
-z_stream& Deflater(int level) {
+// zlib's memLevel for a chunk of `bytes`: a hash of about one entry per input byte (memLevel m
+// hashes into 2^(m+7) entries). deflateReset clears the whole hash, so the default (m = 8, 64 KiB)
+// for every few-kB chunk was a fifth of the flush's instructions; the stream format is the same.
+int MemLevelFor(std::size_t bytes) {
+  int bits = 0;
+  while (bits < 30 && (std::size_t{1} << bits) < bytes) ++bits;
+  return std::clamp(bits - 7, 1, 8);
+}
+
+// One deflate state per (level, memLevel), shared by every dataset of this thread (up to
+// ~256 KiB each: one per dataset was 25 MB for the shoulder scene's ~100 datasets).
+z_stream& Deflater(int level, int mem_level) {
   struct Streams {
-    std::array<std::unique_ptr<z_stream>, 10> z;
+    std::array<std::array<std::unique_ptr<z_stream>, 9>, 10> z;
     ~Streams() {
-      for (auto& s : z) {
-        if (s) deflateEnd(s.get());
+      for (auto& by_level : z) {
+        for (auto& s : by_level) {
+          if (s) deflateEnd(s.get());
+        }
       }
     }
   };
   thread_local Streams streams;
-  std::unique_ptr<z_stream>& s = streams.z[static_cast<std::size_t>(level)];
+  std::unique_ptr<z_stream>& s =
+      streams.z[static_cast<std::size_t>(level)][static_cast<std::size_t>(mem_level)];
   if (!s) {
     auto z = std::make_unique<z_stream>();
-    if (deflateInit(z.get(), level) != Z_OK) throw std::runtime_error("zlib: deflateInit");
+    if (deflateInit2(z.get(), level, Z_DEFLATED, 15, mem_level, Z_DEFAULT_STRATEGY) != Z_OK) {
+      throw std::runtime_error("zlib: deflateInit2");
+    }
     s = std::move(z);
   }
   return *s;
@@ -87,7 +101,7 @@ void ChunkCodec::Write(h5::Dataset& ds, const hsize_t* offset, const unsigned ch
     for (std::size_t i = 0; i < count; ++i) out[i] = p[i * file_bytes_ + j];
   }
   // Deflate (HDF5's deflate filter: zlib format at the dataset's level), one stream reused.
-  z_stream& z = Deflater(level_);
+  z_stream& z = Deflater(level_, MemLevelFor(bytes));
   compressed_.resize(deflateBound(&z, static_cast<uLong>(bytes)));
   deflateReset(&z);
   z.next_in = shuffled_.data();
