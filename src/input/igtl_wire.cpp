@@ -82,8 +82,8 @@ bool UnpackInto(const Message& m, igtl::MessageBase* msg, std::string* why) {
 }  // namespace
 
 void StreamParser::Append(const std::uint8_t* data, std::size_t n) {
-  if (pos_ > 0 && pos_ == buf_.size()) {
-    buf_.clear();
+  if (pos_ > 0) {  // drop what Next consumed: the buffer holds at most one incomplete message
+    buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(pos_));
     pos_ = 0;
   }
   buf_.insert(buf_.end(), data, data + n);
@@ -232,7 +232,7 @@ int Listen(const std::string& address, int port, int* bound_port) {
     ::close(fd);
     throw std::runtime_error("bad bind address '" + address + "' (expected IPv4 dotted quad)");
   }
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0 || ::listen(fd, 4) != 0) {
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0 || ::listen(fd, SOMAXCONN) != 0) {
     const std::string err = std::strerror(errno);
     ::close(fd);
     throw std::runtime_error(fmt::format("cannot listen on {}:{}: {}", address, port, err));
