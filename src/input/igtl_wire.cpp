@@ -54,7 +54,10 @@ std::vector<std::uint8_t> Packed(igtl::MessageBase* m) {
 }
 
 void Stamp(igtl::MessageBase* m, double t_s) {
-  if (!(t_s > 0)) return;  // 0 means "no timestamp"
+  if (!(t_s > 0)) {  // 0 means "no timestamp"; unset, OpenIGTLink sends a stale one
+    m->SetTimeStamp(0, 0);
+    return;
+  }
   const double sec = std::floor(t_s);
   const double frac = std::ldexp(t_s - sec, 32);
   m->SetTimeStamp(static_cast<unsigned int>(sec),

@@ -236,6 +236,21 @@ TEST(Igtl, MalformedOversizedAndOutOfOrderMessagesAreDropped) {
   ::close(fd);
 }
 
+// A message without a timestamp has 0 on the wire. OpenIGTLink leaves the field as it finds it:
+// 'session end' (unstamped) went out with an earlier message's time and could be refused as out
+// of order, so that the session never ended.
+TEST(Igtl, UnstampedMessagesCarryNoTimestamp) {
+  for (int i = 0; i < 3; ++i) {
+    const std::vector<std::uint8_t> stamped = igtl_wire::EncodeString("Command", "x", 5.5 + i);
+    const std::vector<std::uint8_t> unstamped =
+        igtl_wire::EncodeString("Command", "session end", 0);
+    EXPECT_NE(std::vector<std::uint8_t>(stamped.begin() + 34, stamped.begin() + 42),
+              std::vector<std::uint8_t>(8, 0));
+    EXPECT_EQ(std::vector<std::uint8_t>(unstamped.begin() + 34, unstamped.begin() + 42),
+              std::vector<std::uint8_t>(8, 0));
+  }
+}
+
 // A burst of connects that each send half a header and hang up, as fast as the client can: each
 // is accepted at once (the backlog once held 4, and the server took one connection per poll
 // round, so a fifth connect's SYN was dropped and repeated by the kernel 1 s later), and each
