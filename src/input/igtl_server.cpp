@@ -47,6 +47,7 @@ constexpr EnumName<Refusal> kRefusalNames[] = {
     {Refusal::kOrder, "order"},    {Refusal::kCommand, "command"},
     {Refusal::kOwner, "owner"},    {Refusal::kPartial, "partial"},
     {Refusal::kClients, "clients"}};
+static_assert(std::size(kRefusalNames) == kRefusalKinds, "a name for every Refusal");
 
 void StderrLog(const std::string& s) { std::fprintf(stderr, "igtl: %s\n", s.c_str()); }
 
@@ -78,6 +79,17 @@ std::string DescribePartial(const std::vector<std::uint8_t>& p) {
   if (p.size() < header) return fmt::format("{} of the {} header bytes", p.size(), header);
   return fmt::format("{} of {} bytes of {} '{}'", p.size(), header + BigEndian(&p[42], 8),
                      HeaderField(&p[2], 12), HeaderField(&p[14], 20));
+}
+
+/// `text` fit for one log line: control and non-ASCII bytes as '?', at most about 300
+/// characters, its start and end (a client's STRING must not forge log lines or write 64 kB).
+std::string OneLine(const std::string& text) {
+  std::string out =
+      text.size() <= 300 ? text : text.substr(0, 196) + " ... " + text.substr(text.size() - 99);
+  for (char& c : out) {
+    if (c < 0x20 || c > 0x7e) c = '?';
+  }
+  return out;
 }
 
 std::string PeerAddress(const sockaddr_in& a) {
@@ -238,7 +250,7 @@ struct IgtlServer::Impl {
     ++stats.refused[static_cast<std::size_t>(kind)];
     ++stats.dropped;
     const std::string word = RefusalName(kind);
-    log.Write("refused " + word, fmt::format("refused {} from {}: {}", word, who, why),
+    log.Write("refused " + word, fmt::format("refused {} from {}: {}", word, who, OneLine(why)),
               Clock::now());
   }
 

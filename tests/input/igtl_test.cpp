@@ -191,7 +191,8 @@ TEST(Igtl, MalformedOversizedAndOutOfOrderMessagesAreDropped) {
   SendAll(fd, igtl_wire::EncodeString("Command", "slot0 speed=3", 6.0));
   SendAll(fd, igtl_wire::EncodeString("Command", "slot0 instrument=laser", 6.0));
   SendAll(fd, igtl_wire::EncodeString("Command", "slot0 jaw=nan", 6.0));
-  SendAll(fd, igtl_wire::EncodeString("Command", "slot3 jaw=1", 6.0));
+  SendAll(fd, igtl_wire::EncodeString("Command",
+                                      "slot3 jaw=1\nigtl: forged " + std::string(500, 'x'), 6.0));
   std::vector<std::uint8_t> other = igtl_wire::EncodeString("Pointer", "x", 6.0);
   std::memcpy(other.data() + 2, "POSITION\0\0\0\0", 12);  // unsupported type, valid framing
   SendAll(fd, other);
@@ -215,6 +216,12 @@ TEST(Igtl, MalformedOversizedAndOutOfOrderMessagesAreDropped) {
   EXPECT_TRUE(log.Contains("refused device from client 1 (127.0.0.1:"));
   EXPECT_TRUE(log.Contains("TRANSFORM 'Slot7ToReference': unknown device name"));
   EXPECT_TRUE(log.Contains("unknown key 'speed'"));
+  EXPECT_TRUE(log.Contains("STRING 'slot3 jaw=1?igtl: forged xxx"));  // one line, cut short
+  EXPECT_TRUE(log.Contains("xxx': unknown device 'slot3'"));
+  {
+    std::lock_guard<std::mutex> l(log.mu);
+    for (const std::string& line : log.lines) EXPECT_LT(line.size(), 500u) << line;
+  }
   EXPECT_TRUE(log.Contains("exceeds the limit of 4096"));
   EXPECT_TRUE(log.Contains("POSITION 'Pointer': unsupported message type"));
   const IgtlServerStats st = server.stats();
