@@ -1,5 +1,5 @@
 // arthrosim run SCENARIO [--trajectory F] [--out F.h5] [--duration S | --steps N] [--threads N]
-//              [--resume RUN.h5 | --from RUN.h5 --at T]
+//              [--resume RUN.h5 | --from RUN.h5 --at T] [--igtl-device NAME=TARGET ...]
 // Loads the scenario (or a run file's checkpoint), replays the trajectory through the fixed-step
 // core and writes HDF5.
 #include <fmt/core.h>
@@ -12,6 +12,8 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
@@ -43,9 +45,28 @@ struct RunArgs {
   bool live = false;       // serve: input from a device, paced to real time, runs until it ends
   double max_force_n = 0;  // serve --max-force: overrides haptics.max_force_n when > 0
   VideoArgs video;
-  std::string resume, from;    // --resume RUN.h5, --from RUN.h5 (run_resume.h)
-  std::optional<double> at_s;  // --at T
+  std::string resume, from;               // --resume RUN.h5, --from RUN.h5 (run_resume.h)
+  std::optional<double> at_s;             // --at T
+  std::vector<std::string> igtl_devices;  // --igtl-device NAME=TARGET (live input only)
 };
+
+// The --igtl-device mappings, checked before anything is loaded; live input only.
+input::IgtlDeviceNames DeviceNames(const RunArgs& a) {
+  input::IgtlDeviceNames names;
+  for (const std::string& spec : a.igtl_devices) input::AddIgtlDeviceName(spec, &names);
+  if (!names.empty() && a.trajectory != "igtl" && a.trajectory.rfind("igtl:", 0) != 0) {
+    throw InputError("--igtl-device", 0, "",
+                     "maps live device names; it needs --trajectory igtl[:ADDR][:PORT] (or serve)");
+  }
+  return names;
+}
+
+// --igtl-device on `run` and `serve`.
+void AddDeviceNameOption(CLI::App* cmd, RunArgs* a) {
+  cmd->add_option("--igtl-device", a->igtl_devices,
+                  "Map a device's own TRANSFORM name to a slot: NAME=slot0|slot1|scope|ignore "
+                  "(repeatable; e.g. StylusToTracker=slot0; docs/haptics.md)");
+}
 
 // Live runs say when they fall behind real time: a log line and a `realtime_lag` event (detail
 // lag_s=<seconds>) when the lag first exceeds the threshold and each time it grows by another
@@ -100,6 +121,7 @@ int Run(const RunArgs& a) {
   // the run at the end of a step with a closed file and a last checkpoint.
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
+  input::IgtlDeviceNames device_names = DeviceNames(a);
   SetThreadCount(a.threads);
   RunStart start = Start(a);
   if (a.max_force_n > 0) start.model.haptics.max_force_n = a.max_force_n;
@@ -111,6 +133,7 @@ int Run(const RunArgs& a) {
   options.seed = start.seed;
   options.noise_scale = start.noise_scale;
   options.record_path = a.record;
+  options.igtl_devices = std::move(device_names);
   std::vector<std::string> warnings;
   std::unique_ptr<input::InputSource> source =
       input::OpenInputSource(start.trajectory, model, options, &warnings);
@@ -233,6 +256,7 @@ void AddServeCommand(CLI::App* app, int* exit_code) {
                   "Procedure plan: warn the trainee live (STRING messages, live_warning events; "
                   "docs/metrics.md)");
   cmd->add_flag("--quiet", a->quiet, "No progress bar or summary");
+  AddDeviceNameOption(cmd, a.get());
   cmd->callback([a, bind, port, exit_code] {
     a->live = true;
     a->trajectory = "igtl:" + *bind + ":" + std::to_string(*port);
@@ -265,6 +289,7 @@ void AddRunCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--threads", a->threads, "Worker threads (results do not depend on it)")
       ->check(CLI::Range(1, 256));
   cmd->add_flag("--quiet", a->quiet, "No progress bar or summary");
+  AddDeviceNameOption(cmd, a.get());
   AddVideoOptions(cmd, &a->video, true);
   // A run's video covers the run: `render`'s time range (--from S --to S) does not apply here,
   // and --from names the run file to start from.

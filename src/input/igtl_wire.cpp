@@ -54,7 +54,10 @@ std::vector<std::uint8_t> Packed(igtl::MessageBase* m) {
 }
 
 void Stamp(igtl::MessageBase* m, double t_s) {
-  if (!(t_s > 0)) return;  // 0 means "no timestamp"
+  if (!(t_s > 0)) {  // 0 means "no timestamp"; unset, OpenIGTLink sends a stale one
+    m->SetTimeStamp(0, 0);
+    return;
+  }
   const double sec = std::floor(t_s);
   const double frac = std::ldexp(t_s - sec, 32);
   m->SetTimeStamp(static_cast<unsigned int>(sec),
@@ -82,8 +85,8 @@ bool UnpackInto(const Message& m, igtl::MessageBase* msg, std::string* why) {
 }  // namespace
 
 void StreamParser::Append(const std::uint8_t* data, std::size_t n) {
-  if (pos_ > 0 && pos_ == buf_.size()) {
-    buf_.clear();
+  if (pos_ > 0) {  // drop what Next consumed: the buffer holds at most one incomplete message
+    buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(pos_));
     pos_ = 0;
   }
   buf_.insert(buf_.end(), data, data + n);
@@ -232,7 +235,7 @@ int Listen(const std::string& address, int port, int* bound_port) {
     ::close(fd);
     throw std::runtime_error("bad bind address '" + address + "' (expected IPv4 dotted quad)");
   }
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0 || ::listen(fd, 4) != 0) {
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0 || ::listen(fd, SOMAXCONN) != 0) {
     const std::string err = std::strerror(errno);
     ::close(fd);
     throw std::runtime_error(fmt::format("cannot listen on {}:{}: {}", address, port, err));

@@ -37,6 +37,12 @@ class StreamParser {
   /// kMessage: *out filled. kDropped: an oversized body is being skipped (*why says so).
   /// kFatal: the stream cannot be resynchronised (bad header); close the connection.
   Result Next(Message* out, std::string* why);
+  /// The bytes received and not yet returned by Next: the start of an incomplete message.
+  std::vector<std::uint8_t> Pending() const {
+    return {buf_.begin() + static_cast<std::ptrdiff_t>(pos_), buf_.end()};
+  }
+  /// True while the rest of an oversized body (already reported as kDropped) is being skipped.
+  bool Skipping() const { return skip_ > 0; }
 
  private:
   std::vector<std::uint8_t> buf_;
@@ -55,7 +61,9 @@ std::optional<Pose> DecodeTransform(const Message& m, std::string* why);
 std::optional<std::string> DecodeString(const Message& m, std::string* why);
 std::optional<Vec3> DecodeSensor(const Message& m, std::string* why);
 
-/// Listening TCP socket on address:port (port 0 = ephemeral); returns fd, sets *bound_port.
+/// Listening TCP socket on address:port (port 0 = ephemeral); returns fd, sets *bound_port. The
+/// backlog is SOMAXCONN: connections the server has not accepted yet wait in the kernel, not in
+/// the client's SYN retry (1 s).
 /// Throws std::runtime_error on failure.
 int Listen(const std::string& address, int port, int* bound_port);
 /// Connects to host:port within timeout_s; returns fd or -1.

@@ -36,6 +36,7 @@ std::unique_ptr<InputSource> OpenRaw(const std::string& spec, const Model& model
 #ifdef ARTHROSIM_HAVE_OPENIGTLINK
     IgtlServerOptions io;
     io.realtime = o.realtime;
+    io.device_names = o.igtl_devices;
     const std::string rest = spec.size() > 5 ? spec.substr(5) : "";
     const std::size_t colon = rest.rfind(':');
     try {
@@ -60,6 +61,27 @@ std::unique_ptr<InputSource> OpenRaw(const std::string& spec, const Model& model
 }
 
 }  // namespace
+
+void AddIgtlDeviceName(const std::string& spec, IgtlDeviceNames* names) {
+  auto fail = [&](const std::string& why) {
+    throw InputError("--igtl-device", 0, "", "'" + spec + "': " + why);
+  };
+  const std::size_t eq = spec.find('=');
+  if (eq == std::string::npos) fail("expected NAME=slot0|slot1|scope|ignore");
+  const std::string name = spec.substr(0, eq), target = spec.substr(eq + 1);
+  if (name.empty() || name.size() > 20) fail("the device name must have 1 to 20 characters");
+  for (const char c : name) {
+    if (c < 0x21 || c > 0x7e) fail("the device name must be printable ASCII without spaces");
+  }
+  std::optional<Device> dev;
+  if (target != "ignore") {
+    dev = ParseDevice(target);
+    if (!dev || target == "camera")
+      fail("unknown target '" + target + "' (slot0, slot1, scope, ignore)");
+  }
+  const auto [it, added] = names->try_emplace(name, dev);
+  if (!added && it->second != dev) fail("'" + name + "' is already mapped to another target");
+}
 
 std::unique_ptr<InputSource> OpenInputSource(const std::string& spec, const Model& model,
                                              const SourceOptions& options,

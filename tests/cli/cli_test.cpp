@@ -154,6 +154,26 @@ TEST_F(CliTest, KilledRunLeavesAReadableFile) {
   EXPECT_NE(text.find("Name=\"frame" + std::to_string(stored - 1) + "\""), std::string::npos);
 }
 
+// --igtl-device mappings are checked before the scenario is loaded: a bad target, or a mapping
+// without live input, exits 2 naming the option and writes nothing.
+TEST_F(CliTest, IgtlDeviceMappingIsChecked) {
+  const std::string tail = " --steps 1 --quiet --out " + P("x.h5");
+  Result r = Exec("run " + kSmall +
+                  " --trajectory igtl:127.0.0.1:0 --igtl-device StylusToTracker=hand" + tail);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--igtl-device: 'StylusToTracker=hand': unknown target 'hand' (slot0, "
+                          "slot1, scope, ignore)"),
+            std::string::npos)
+      << r.output;
+  r = Exec("serve " + kSmall + " --igtl-device StylusToTracker --quiet --out " + P("x.h5"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("expected NAME=slot0|slot1|scope|ignore"), std::string::npos) << r.output;
+  r = Exec("run " + kSmall + " --igtl-device StylusToTracker=slot0" + tail);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("needs --trajectory igtl"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(P("x.h5")));
+}
+
 // A live session over OpenIGTLink (arthrosim serve + the streaming client), recorded with
 // --record, replays with `run --trajectory` to byte-identical HDF5 datasets; forces come back.
 TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {

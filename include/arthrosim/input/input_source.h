@@ -6,6 +6,7 @@
 // back (deterministic, since they come from the core); only the live server depends on what
 // arrives over the network.
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -23,6 +24,11 @@ inline constexpr int kDeviceCount = 3;
 const char* DeviceName(Device device);
 /// Parses "slot0", "slot1", "scope" (alias "camera"); std::nullopt otherwise.
 std::optional<Device> ParseDevice(const std::string& name);
+
+/// TRANSFORM device names a live server accepts besides its own (Slot0ToReference, ...): name ->
+/// the device it drives, or std::nullopt for a name whose messages are ignored without a log
+/// line (a tracker's other tools). A name here replaces a default of the same name.
+using IgtlDeviceNames = std::map<std::string, std::optional<Device>>;
 
 class InputSource {
  public:

@@ -17,7 +17,13 @@ struct SourceOptions {
   SessionOptions session;             ///< recorded-session checks
   std::string record_path;            ///< if set, record applied frames as session CSV
   bool realtime = true;               ///< live server: pace Frame to wall time
+  IgtlDeviceNames igtl_devices;       ///< live server: TRANSFORM names mapped to devices
 };
+
+/// Adds one live-input device mapping "NAME=TARGET" (TARGET slot0, slot1, scope or ignore; NAME
+/// the TRANSFORM device name, 1 to 20 printable characters, no '=') to *names. Throws InputError
+/// ("--igtl-device: ...") for a bad target or name, or a name already mapped elsewhere.
+void AddIgtlDeviceName(const std::string& spec, IgtlDeviceNames* names);
 
 /// "none" -> IdleSource; *.csv, *.h5, *.hdf5 -> RecordedSource; *.yaml, *.yml -> ScriptSource;
 /// "igtl" or "igtl:PORT" or "igtl:ADDRESS:PORT" -> IgtlServer (if built with OpenIGTLink).
