@@ -304,7 +304,12 @@ void AddRunCommand(CLI::App* app, int* exit_code) {
                  ->check(CLI::NonNegativeNumber);
   resume->excludes(from);
   at->needs(from);
-  cmd->callback([a, exit_code] { *exit_code = Run(*a); });
+  cmd->callback([a, exit_code] {
+    // Live input is live whichever command reads it: paced to real time, until the device
+    // ends the session (it ran 180 000 steps past the session's end before).
+    if (a->trajectory == "igtl" || a->trajectory.rfind("igtl:", 0) == 0) a->live = true;
+    *exit_code = Run(*a);
+  });
 }
 
 }  // namespace arthrosim::cli

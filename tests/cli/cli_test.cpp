@@ -176,6 +176,34 @@ TEST_F(CliTest, IgtlDeviceMappingIsChecked) {
 
 // A live session over OpenIGTLink (arthrosim serve + the streaming client), recorded with
 // --record, replays with `run --trajectory` to byte-identical HDF5 datasets; forces come back.
+// `run --trajectory igtl:...` is live as `serve` is: it ends with the device's session (a
+// 1.5 s session: 75 steps), not 180 000 steps later.
+TEST_F(CliTest, RunWithLiveInputEndsWithTheSession) {
+  const std::string client = std::string(ARTHROSIM_BINARY_DIR) + "/src/input/igtl_stream_client";
+  if (!fs::exists(client)) GTEST_SKIP() << "built without OpenIGTLink";
+  const std::string port = std::to_string(20000 + (getpid() + 7919) % 20000);
+  const std::string live = P("live.h5");
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const std::string spec = "igtl:127.0.0.1:" + port;
+    execl(kBinary.c_str(), kBinary.c_str(), "run", kSmall.c_str(), "--trajectory", spec.c_str(),
+          "--out", live.c_str(), "--quiet", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  const std::string stream = client + " " + kSource +
+                             "/tests/testdata/scenes/small_session.csv --port " + port + " > " +
+                             P("client.log") + " 2>&1";
+  ASSERT_NO_FATAL_FAILURE(arthrosim::testing::StreamThenWaitForServer(stream, pid));
+  const Result info = Exec("info " + live);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  const std::size_t at = info.output.find("frames: ");
+  ASSERT_NE(at, std::string::npos) << info.output;
+  const long frames = std::stol(info.output.substr(at + 8));
+  EXPECT_GT(frames, 50) << info.output;
+  EXPECT_LT(frames, 200) << info.output;
+}
+
 TEST_F(CliTest, ServeRecordReplayReproducesTheLiveRun) {
   const std::string client = std::string(ARTHROSIM_BINARY_DIR) + "/src/input/igtl_stream_client";
   if (!fs::exists(client)) GTEST_SKIP() << "built without OpenIGTLink";
