@@ -157,11 +157,11 @@ void WriteDataset(const std::string& path, hid_t group, const char* name, hid_t 
   }
 }
 
-}  // namespace
-
-SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
-  QuietHdf5 quiet;
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+// The session in the HDF5 file `file_id` (closed here; < 0 if it could not be opened); `path`
+// names it in messages. The caller holds a QuietHdf5.
+SessionTable ReadOpenSession(hid_t file_id, const std::string& path,
+                             const SessionOptions& options) {
+  const Handle file(file_id, H5Fclose);
   if (file.get() < 0) throw InputError(path, 0, "", "cannot open as an HDF5 file");
   SessionTable table;
   table.file = path;
@@ -221,6 +221,25 @@ SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& opti
   if (table.rows.empty()) throw InputError(path, 0, "", "no samples");
   ValidateSession(&table, options);
   return table;
+}
+
+}  // namespace
+
+SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
+  QuietHdf5 quiet;
+  return ReadOpenSession(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), path, options);
+}
+
+SessionTable ParseSessionHdf5(const void* image, std::size_t size, const std::string& file,
+                              const SessionOptions& options) {
+  QuietHdf5 quiet;
+  // The core driver without a backing store, opened on a copy of the image: no disk access.
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  if (fapl.get() < 0 || H5Pset_fapl_core(fapl.get(), 64 * 1024, false) < 0 ||
+      H5Pset_file_image(fapl.get(), const_cast<void*>(image), size) < 0) {
+    throw InputError(file, 0, "", "cannot open as an HDF5 file");
+  }
+  return ReadOpenSession(H5Fopen(file.c_str(), H5F_ACC_RDONLY, fapl.get()), file, options);
 }
 
 void WriteSessionHdf5(const std::string& path, const SessionTable& table) {
