@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/hdf5_handle.h"
@@ -40,14 +41,16 @@ class Reader {
     if (d.get() < 0) Fail(ds, 0, "missing dataset");
     Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[2] = {0, 0};
-    const int rank = H5Sget_simple_extent_ndims(space.get());
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
     const int want_rank = cols == 0 ? 1 : 2;
-    if (rank != want_rank || (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
+    // The rank first: dims has room for two.
+    if (H5Sget_simple_extent_ndims(space.get()) != want_rank ||
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr) != want_rank ||
+        (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
       Fail(ds, 0,
            cols == 0 ? "expected a 1-D dataset" : fmt::format("expected shape [n, {}]", cols));
     }
     CheckRows(ds, dims[0], n);
+    CheckStored(ds, d.get(), dims[0], static_cast<hsize_t>(std::max(cols, 1)));
     std::vector<double> v(dims[0] * std::max(cols, 1));
     if (!v.empty() &&
         H5Dread(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
@@ -120,9 +123,12 @@ class Reader {
   // against *n (CheckRows).
   Handle OneDimSpace(const char* ds, hid_t d, hsize_t* n, hsize_t dims[1]) const {
     Handle space(H5Dget_space(d), H5Sclose);
-    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+    if (H5Sget_simple_extent_ndims(space.get()) != 1 ||
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr) != 1) {
+      Fail(ds, 0, "expected a 1-D dataset");
+    }
     CheckRows(ds, dims[0], n);
+    CheckStored(ds, d, dims[0], 1);
     return space;
   }
 
@@ -137,6 +143,23 @@ class Reader {
       *n = rows;
     } else if (rows != *n) {
       Fail(ds, 0, fmt::format("has {} rows but /{}/t has {}", rows, name_, *n));
+    }
+  }
+  // Refuses a dataset d of rows x cols values that declares more data than its stored bytes
+  // can hold, even compressed (deflate expands at most ~1032:1), plus 64 KiB of fill value: a
+  // file of a few hundred bytes may declare terabytes that reading would allocate.
+  void CheckStored(const char* ds, hid_t d, hsize_t rows, hsize_t cols) const {
+    constexpr hsize_t kMaxExpansion = 1032, kFillBytes = 64 * 1024;
+    const Handle type(H5Dget_type(d), H5Tclose);
+    const hsize_t value_bytes = std::max<hsize_t>(1, H5Tget_size(type.get()));
+    const hsize_t stored = H5Dget_storage_size(d);
+    const hsize_t max_bytes = stored > (hsize_t{1} << 50) ? std::numeric_limits<hsize_t>::max()
+                                                          : stored * kMaxExpansion + kFillBytes;
+    if (rows > max_bytes / value_bytes / cols) {
+      Fail(ds, 0,
+           fmt::format("declares {} rows but the file stores only {} bytes of them (a damaged or "
+                       "hand-made file)",
+                       rows, stored));
     }
   }
   const std::string& file_;
