@@ -211,6 +211,12 @@ std::optional<Vec3> DecodeSensor(const Message& m, std::string* why) {
     *why = fmt::format("SENSOR '{}': expected 3 values", m.device);
     return std::nullopt;
   }
+  // OpenIGTLink unpacks as many values as the body's array length (its first byte) says, even
+  // past the end of the body: that length is checked first.
+  if (m.bytes[kHeaderBytes] != 3) {
+    *why = fmt::format("SENSOR '{}': array length {}, expected 3", m.device, m.bytes[kHeaderBytes]);
+    return std::nullopt;
+  }
   igtl::SensorMessage::Pointer msg = igtl::SensorMessage::New();
   if (!UnpackInto(m, msg, why)) return std::nullopt;
   if (msg->GetLength() != 3) {
