@@ -145,10 +145,17 @@ class Reader {
       Fail(ds, 0, fmt::format("has {} rows but /{}/t has {}", rows, name_, *n));
     }
   }
-  // Refuses a dataset d of rows x cols values that declares more data than its stored bytes
-  // can hold, even compressed (deflate expands at most ~1032:1), plus 64 KiB of fill value: a
-  // file of a few hundred bytes may declare terabytes that reading would allocate.
+  // Refuses a dataset d of rows x cols values whose data is kept outside the file (external raw
+  // data files, virtual datasets: they can name any path, /dev/zero or a FIFO included), or
+  // that declares more data than its stored bytes can hold, even compressed (deflate expands at
+  // most ~1032:1), plus 64 KiB of fill value: a file of a few hundred bytes may declare
+  // terabytes that reading would allocate.
   void CheckStored(const char* ds, hid_t d, hsize_t rows, hsize_t cols) const {
+    const Handle dcpl(H5Dget_create_plist(d), H5Pclose);
+    if (dcpl.get() < 0 || H5Pget_external_count(dcpl.get()) != 0 ||
+        H5Pget_layout(dcpl.get()) == H5D_VIRTUAL) {
+      Fail(ds, 0, "data stored outside the file (an external or virtual dataset) is not supported");
+    }
     constexpr hsize_t kMaxExpansion = 1032, kFillBytes = 64 * 1024;
     const Handle type(H5Dget_type(d), H5Tclose);
     const hsize_t value_bytes = std::max<hsize_t>(1, H5Tget_size(type.get()));
