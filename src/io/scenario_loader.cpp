@@ -212,7 +212,7 @@ void ReadMaterials(const YamlSection& root, Model* m) {
     root.reader().Fail(materials, "materials", "expected a mapping name -> material");
   for (auto it = materials.begin(); it != materials.end(); ++it) {
     Material mat;
-    mat.name = it->first.as<std::string>();
+    mat.name = root.reader().Scalar(it->first, "materials");
     YamlSection s(
         root.reader(), it->second, "materials." + mat.name,
         {"young_modulus", "poisson_ratio", "density", "rayleigh_mass", "rayleigh_stiffness"});
