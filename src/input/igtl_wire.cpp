@@ -69,6 +69,13 @@ bool UnpackInto(const Message& m, igtl::MessageBase* msg, std::string* why) {
   h->Unpack();
   msg->SetMessageHeader(h);
   msg->AllocatePack();
+  // OpenIGTLink sizes the body from the header it unpacked (a version 2 header may leave it
+  // smaller than the bytes received): copy only into a body of exactly the message's size.
+  if (msg->GetPackBodySize() < 0 ||
+      static_cast<std::size_t>(msg->GetPackBodySize()) != m.bytes.size() - kHeaderBytes) {
+    *why = fmt::format("{} '{}': malformed header", m.type, m.device);
+    return false;
+  }
   std::memcpy(msg->GetPackBodyPointer(), m.bytes.data() + kHeaderBytes,
               m.bytes.size() - kHeaderBytes);
   const int r = msg->Unpack(1);

@@ -47,5 +47,17 @@ TEST(IgtlDecode, SensorArrayLengthBeyondItsBodyIsRefusedBeforeUnpacking) {
   EXPECT_EQ(*v, Vec3(1, 2, 3));
 }
 
+TEST(IgtlDecode, BodyOpenIgtlinkSizesSmallerThanTheMessageIsRefused) {
+  // Found by fuzz_igtl: a version 2 STRING message (22-byte body) for which OpenIGTLink allocated
+  // a smaller body than the bytes received; the copy into it overflowed the heap.
+  const std::vector<igtl_wire::Message> m =
+      Messages(std::string(ARTHROSIM_SOURCE_DIR) + "/tests/testdata/bad/igtl_string_v2_body.bin");
+  ASSERT_FALSE(m.empty());
+  ASSERT_EQ(m[0].type, "STRING");
+  std::string why;
+  EXPECT_FALSE(igtl_wire::DecodeString(m[0], &why).has_value());
+  EXPECT_NE(why.find("STRING 'Command': malformed header"), std::string::npos) << why;
+}
+
 }  // namespace
 }  // namespace arthrosim::input
