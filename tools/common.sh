@@ -13,9 +13,15 @@ ARTHROSIM_PACKAGES=(
   python3 python3-h5py python3-numpy python3-yaml gmsh python3-gmsh
 )
 
+# What tools/fuzz needs on top: clang and its libFuzzer / sanitizer runtimes.
+ARTHROSIM_FUZZ_PACKAGES=(clang-14 libclang-rt-14-dev)
+
+# arthrosim_install_packages [PACKAGE...]: installs those missing of the given packages
+# (default: ARTHROSIM_PACKAGES).
 arthrosim_install_packages() {
-  local missing=()
-  for p in "${ARTHROSIM_PACKAGES[@]}"; do
+  local missing=() wanted=("$@")
+  if [ ${#wanted[@]} -eq 0 ]; then wanted=("${ARTHROSIM_PACKAGES[@]}"); fi
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   if [ ${#missing[@]} -eq 0 ]; then return 0; fi

@@ -72,6 +72,13 @@ bool UnpackInto(const Message& m, igtl::MessageBase* msg, std::string* why) {
   h->Unpack();
   msg->SetMessageHeader(h);
   msg->AllocatePack();
+  // OpenIGTLink sizes the body from the header it unpacked (a version 2 header may leave it
+  // smaller than the bytes received): copy only into a body of exactly the message's size.
+  if (msg->GetPackBodySize() < 0 ||
+      static_cast<std::size_t>(msg->GetPackBodySize()) != m.bytes.size() - kHeaderBytes) {
+    *why = fmt::format("{} '{}': malformed header", m.type, m.device);
+    return false;
+  }
   std::memcpy(msg->GetPackBodyPointer(), m.bytes.data() + kHeaderBytes,
               m.bytes.size() - kHeaderBytes);
   const int r = msg->Unpack(1);
@@ -212,6 +219,12 @@ std::optional<std::string> DecodeString(const Message& m, std::string* why) {
 std::optional<Vec3> DecodeSensor(const Message& m, std::string* why) {
   if (m.bytes.size() != kHeaderBytes + 10 + 3 * 8) {
     *why = fmt::format("SENSOR '{}': expected 3 values", m.device);
+    return std::nullopt;
+  }
+  // OpenIGTLink unpacks as many values as the body's array length (its first byte) says, even
+  // past the end of the body: that length is checked first.
+  if (m.bytes[kHeaderBytes] != 3) {
+    *why = fmt::format("SENSOR '{}': array length {}, expected 3", m.device, m.bytes[kHeaderBytes]);
     return std::nullopt;
   }
   igtl::SensorMessage::Pointer msg = igtl::SensorMessage::New();

@@ -93,7 +93,10 @@ Vec3 PickToward(const StepInput& in) {
   if (in.body["toward"]) return ps.Location(in.body["toward"], in.field + ".toward", false);
   for (std::size_t j = in.index + 1; j < in.seq.size(); ++j) {
     const YAML::Node nx = in.seq[j];
-    if (!nx.IsMap() || nx.size() != 1 || nx.begin()->first.as<std::string>() != "move") continue;
+    if (!nx.IsMap() || nx.size() != 1 || !nx.begin()->first.IsScalar() ||
+        nx.begin()->first.Scalar() != "move") {
+      continue;
+    }
     const YAML::Node mb = nx.begin()->second;
     const std::string mf = fmt::format("{}[{}].move", in.track, j);
     if (!mb.IsMap() || !mb["to"]) continue;
@@ -385,7 +388,7 @@ void BuildHand(const Parser& ps, const YAML::Node& seq, int slot, const NoiseCtx
     const YAML::Node item = seq[i];
     const std::string where = fmt::format("{}[{}]", track, i);
     if (!item.IsMap() || item.size() != 1) ps.Fail(item, where, "expected one action: {op: {...}}");
-    const std::string op = item.begin()->first.as<std::string>();
+    const std::string op = ps.Str(item.begin()->first, where);
     const YAML::Node body = item.begin()->second;
     const std::string field = where + "." + op;
     const int line = YamlLine(item);

@@ -161,7 +161,7 @@ void BuildCamera(const Parser& ps, const YAML::Node& seq, Timeline* tl) {
     const YAML::Node item = seq[i];
     const std::string where = fmt::format("camera[{}]", i);
     if (!item.IsMap() || item.size() != 1) ps.Fail(item, where, "expected one action: {op: {...}}");
-    const std::string op = item.begin()->first.as<std::string>();
+    const std::string op = ps.Str(item.begin()->first, where);
     const YAML::Node body = item.begin()->second;
     const std::string field = where + "." + op;
     const double t0 = StartTime(ps, body, field, cursor, false);
@@ -289,8 +289,11 @@ Timeline BuildTimeline(const std::string& yaml_text, const std::string& file, co
   NoiseCtx noise;
   if (root["seed"]) {
     const double s = ps.Num(root["seed"], "seed");
-    if (s < 0 || s != std::floor(s)) ps.Fail(root["seed"], "seed", "expected an integer >= 0");
-    noise.seed = root["seed"].as<std::uint64_t>();
+    // "18.0" or "1e30" are whole numbers but no uint64 literal: refused like "-1".
+    if (s < 0 || s != std::floor(s) ||
+        !YAML::convert<std::uint64_t>::decode(root["seed"], noise.seed)) {
+      ps.Fail(root["seed"], "seed", "expected an integer >= 0");
+    }
   }
   if (options.seed) noise.seed = *options.seed;
   if (root["noise"]) noise.p = ParseNoise(ps, root["noise"]);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/hdf5_handle.h"
@@ -40,14 +41,16 @@ class Reader {
     if (d.get() < 0) Fail(ds, 0, "missing dataset");
     Handle space(H5Dget_space(d.get()), H5Sclose);
     hsize_t dims[2] = {0, 0};
-    const int rank = H5Sget_simple_extent_ndims(space.get());
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
     const int want_rank = cols == 0 ? 1 : 2;
-    if (rank != want_rank || (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
+    // The rank first: dims has room for two.
+    if (H5Sget_simple_extent_ndims(space.get()) != want_rank ||
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr) != want_rank ||
+        (cols > 0 && dims[1] != static_cast<hsize_t>(cols))) {
       Fail(ds, 0,
            cols == 0 ? "expected a 1-D dataset" : fmt::format("expected shape [n, {}]", cols));
     }
     CheckRows(ds, dims[0], n);
+    CheckStored(ds, d.get(), dims[0], static_cast<hsize_t>(std::max(cols, 1)));
     std::vector<double> v(dims[0] * std::max(cols, 1));
     if (!v.empty() &&
         H5Dread(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
@@ -120,9 +123,12 @@ class Reader {
   // against *n (CheckRows).
   Handle OneDimSpace(const char* ds, hid_t d, hsize_t* n, hsize_t dims[1]) const {
     Handle space(H5Dget_space(d), H5Sclose);
-    if (H5Sget_simple_extent_ndims(space.get()) != 1) Fail(ds, 0, "expected a 1-D dataset");
-    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+    if (H5Sget_simple_extent_ndims(space.get()) != 1 ||
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr) != 1) {
+      Fail(ds, 0, "expected a 1-D dataset");
+    }
     CheckRows(ds, dims[0], n);
+    CheckStored(ds, d, dims[0], 1);
     return space;
   }
 
@@ -137,6 +143,30 @@ class Reader {
       *n = rows;
     } else if (rows != *n) {
       Fail(ds, 0, fmt::format("has {} rows but /{}/t has {}", rows, name_, *n));
+    }
+  }
+  // Refuses a dataset d of rows x cols values whose data is kept outside the file (external raw
+  // data files, virtual datasets: they can name any path, /dev/zero or a FIFO included), or
+  // that declares more data than its stored bytes can hold, even compressed (deflate expands at
+  // most ~1032:1), plus 64 KiB of fill value: a file of a few hundred bytes may declare
+  // terabytes that reading would allocate.
+  void CheckStored(const char* ds, hid_t d, hsize_t rows, hsize_t cols) const {
+    const Handle dcpl(H5Dget_create_plist(d), H5Pclose);
+    if (dcpl.get() < 0 || H5Pget_external_count(dcpl.get()) != 0 ||
+        H5Pget_layout(dcpl.get()) == H5D_VIRTUAL) {
+      Fail(ds, 0, "data stored outside the file (an external or virtual dataset) is not supported");
+    }
+    constexpr hsize_t kMaxExpansion = 1032, kFillBytes = 64 * 1024;
+    const Handle type(H5Dget_type(d), H5Tclose);
+    const hsize_t value_bytes = std::max<hsize_t>(1, H5Tget_size(type.get()));
+    const hsize_t stored = H5Dget_storage_size(d);
+    const hsize_t max_bytes = stored > (hsize_t{1} << 50) ? std::numeric_limits<hsize_t>::max()
+                                                          : stored * kMaxExpansion + kFillBytes;
+    if (rows > max_bytes / value_bytes / cols) {
+      Fail(ds, 0,
+           fmt::format("declares {} rows but the file stores only {} bytes of them (a damaged or "
+                       "hand-made file)",
+                       rows, stored));
     }
   }
   const std::string& file_;
@@ -157,11 +187,11 @@ void WriteDataset(const std::string& path, hid_t group, const char* name, hid_t 
   }
 }
 
-}  // namespace
-
-SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
-  QuietHdf5 quiet;
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+// The session in the HDF5 file `file_id` (closed here; < 0 if it could not be opened); `path`
+// names it in messages. The caller holds a QuietHdf5.
+SessionTable ReadOpenSession(hid_t file_id, const std::string& path,
+                             const SessionOptions& options) {
+  const Handle file(file_id, H5Fclose);
   if (file.get() < 0) throw InputError(path, 0, "", "cannot open as an HDF5 file");
   SessionTable table;
   table.file = path;
@@ -221,6 +251,25 @@ SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& opti
   if (table.rows.empty()) throw InputError(path, 0, "", "no samples");
   ValidateSession(&table, options);
   return table;
+}
+
+}  // namespace
+
+SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options) {
+  QuietHdf5 quiet;
+  return ReadOpenSession(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), path, options);
+}
+
+SessionTable ParseSessionHdf5(const void* image, std::size_t size, const std::string& file,
+                              const SessionOptions& options) {
+  QuietHdf5 quiet;
+  // The core driver without a backing store, opened on a copy of the image: no disk access.
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  if (fapl.get() < 0 || H5Pset_fapl_core(fapl.get(), 64 * 1024, false) < 0 ||
+      H5Pset_file_image(fapl.get(), const_cast<void*>(image), size) < 0) {
+    throw InputError(file, 0, "", "cannot open as an HDF5 file");
+  }
+  return ReadOpenSession(H5Fopen(file.c_str(), H5F_ACC_RDONLY, fapl.get()), file, options);
 }
 
 void WriteSessionHdf5(const std::string& path, const SessionTable& table) {

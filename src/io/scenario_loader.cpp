@@ -217,7 +217,7 @@ void ReadMaterials(const YamlSection& root, Model* m) {
     root.reader().Fail(materials, "materials", "expected a mapping name -> material");
   for (auto it = materials.begin(); it != materials.end(); ++it) {
     Material mat;
-    mat.name = it->first.as<std::string>();
+    mat.name = root.reader().Scalar(it->first, "materials");
     YamlSection s(
         root.reader(), it->second, "materials." + mat.name,
         {"young_modulus", "poisson_ratio", "density", "rayleigh_mass", "rayleigh_stiffness"});
@@ -247,12 +247,18 @@ void WithMeshContext(const YamlSection& s, const Read& read) {
   }
 }
 
-// Resolves a mesh path relative to the scenario and checks it exists.
+// Resolves a mesh path relative to the scenario and checks it is a regular file (a device such
+// as /dev/zero or a FIFO would never finish reading).
 std::string MeshPath(const YamlSection& s, const fs::path& base_dir) {
   const std::string rel = s.String("mesh");
   const fs::path p = base_dir / rel;
   if (!fs::is_regular_file(p)) {
-    s.reader().Fail(s.Get("mesh"), s.Field("mesh"), "mesh file not found: " + p.string());
+    std::error_code ec;
+    s.reader().Fail(s.Get("mesh"), s.Field("mesh"),
+                    fs::exists(p, ec) ? "mesh is not a regular file (a directory, a device or a "
+                                        "FIFO): " +
+                                            p.string()
+                                      : "mesh file not found: " + p.string());
   }
   return p.string();
 }

@@ -42,8 +42,13 @@ std::string Cursor::Shorten(std::string_view t) {
 
 std::string ReadFileBytes(const std::string& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(st)) {
     throw InputError(path, 0, "", "is a directory; expected a mesh file");
+  }
+  // A device never ends (/dev/zero) and opening a FIFO waits for a writer: refused unopened.
+  if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+    throw InputError(path, 0, "", "not a regular file (a device or a FIFO); expected a mesh file");
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "", "cannot open mesh file for reading");

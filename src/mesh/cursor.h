@@ -193,7 +193,7 @@ class Cursor {
   bool binary_mode_ = false;
 };
 
-/// Reads a whole file; InputError if it cannot be opened.
+/// Reads a whole file; InputError if it cannot be opened or is not a regular file.
 std::string ReadFileBytes(const std::string& path);
 
 /// Lower-case extension without the dot ("" if none).

@@ -86,7 +86,7 @@ Criterion ReadEventCriterion(const Map& m, const Model* model) {
     const YAML::Node d = m.Get("detail");
     if (!d.IsMap()) m.Fail(d, m.Field("detail"), "expected a mapping key: {min, max}");
     for (auto it = d.begin(); it != d.end(); ++it) {
-      const std::string key = it->first.as<std::string>();
+      const std::string key = m.reader().Scalar(it->first, m.Field("detail"));
       c.detail[key] = ReadRange(m, it->second, m.Field("detail." + key));
     }
   }

@@ -2,6 +2,7 @@
 // once each, must give its exit code and a message naming the file, line and field — never a
 // crash, a hang or a partial output. One test per line of the manifest.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -94,12 +95,15 @@ class BadInput : public ::testing::TestWithParam<Case> {
                              "', 'a')['checkpoints']; h5py.File('" + otherbuild_ +
                              "', 'a')['meta'].attrs['compiler'] = 'OtherCC 1.0'\"";
     ASSERT_EQ(std::system(edit.c_str()), 0) << edit;
+    fifo_ = (root_ / "fifo.stl").string();
+    ASSERT_EQ(mkfifo(fifo_.c_str(), 0600), 0) << fifo_;
   }
   static void TearDownTestSuite() { fs::remove_all(root_); }
 
   static std::string Expand(std::string s, const std::string& out) {
-    const std::array<std::pair<const char*, std::string>, 9> subs = {
+    const std::array<std::pair<const char*, std::string>, 10> subs = {
         {{"{nockpt_run}", nockpt_},
+         {"{fifo}", fifo_},
          {"{otherbuild_run}", otherbuild_},
          {"{bad}", kBad},
          {"{scenes}", kScenes},
@@ -118,12 +122,12 @@ class BadInput : public ::testing::TestWithParam<Case> {
   }
 
   static fs::path root_;
-  static std::string run_, notrun_, truncated_, text_h5_, nockpt_, otherbuild_;
+  static std::string run_, notrun_, truncated_, text_h5_, nockpt_, otherbuild_, fifo_;
 };
 
 fs::path BadInput::root_;
 std::string BadInput::run_, BadInput::notrun_, BadInput::truncated_, BadInput::text_h5_,
-    BadInput::nockpt_, BadInput::otherbuild_;
+    BadInput::nockpt_, BadInput::otherbuild_, BadInput::fifo_;
 
 TEST_P(BadInput, ExitsWithItsCodeAndNamesTheFault) {
   const Case& c = GetParam();

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "arthrosim/core/error.h"
@@ -303,6 +304,26 @@ TEST(Hdf5, RoundTripAndBadValue) {
               std::string::npos)
         << e.what();
   }
+}
+
+TEST(Hdf5, FileImageInMemoryReadsAsTheFile) {
+  const SessionTable t = ParseSessionCsv(
+      "t,device,instrument,x,y,z,qw,qx,qy,qz,jaw,buttons,lens_roll,head_roll\n"
+      "0.0,slot0,grasper,0.1,0.2,0.3,1,0,0,0,0.25,1,,\n"
+      "0.0,scope,,1,2,3,0,1,0,0,,,0.5,0.25\n",
+      "s.csv");
+  const std::string path = TempPath("session_image.h5");
+  WriteSessionHdf5(path, t);
+  std::ifstream in(path, std::ios::binary);
+  const std::string image((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const SessionTable r = ParseSessionHdf5(image.data(), image.size(), "memory.h5");
+  EXPECT_EQ(r.file, "memory.h5");
+  ASSERT_EQ(r.rows.size(), t.rows.size());
+  for (std::size_t i = 0; i < r.rows.size(); ++i) {
+    EXPECT_EQ(FormatSessionCsvRow(r.rows[i]), FormatSessionCsvRow(t.rows[i])) << i;
+  }
+  const std::string text = "not an HDF5 file";
+  EXPECT_THROW(ParseSessionHdf5(text.data(), text.size(), "text.h5"), InputError);
 }
 
 TEST(RecordReplay, RecordedFramesReplayBitForBit) {

@@ -2,6 +2,7 @@
 // Recorded sessions: one row per device sample, as read from CSV or HDF5 and before resampling
 // (docs/trajectory-format.md). Rows keep instrument names, so a session can be checked, streamed
 // or converted without a Model; RecordedSource resolves the names against a Model.
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -53,6 +54,10 @@ SessionTable ParseSessionCsv(const std::string& text, const std::string& file,
                              const SessionOptions& options = {});
 /// Reads the HDF5 form (groups /slot0, /slot1, /scope). Same checks; "line" = 1-based row.
 SessionTable ReadSessionHdf5(const std::string& path, const SessionOptions& options = {});
+/// Same, from an HDF5 file image of `size` bytes in memory (a copy is opened with the core
+/// driver, nothing touches disk); `file` is used in messages only.
+SessionTable ParseSessionHdf5(const void* image, std::size_t size, const std::string& file,
+                              const SessionOptions& options = {});
 /// Reads .csv or .h5/.hdf5 by extension.
 SessionTable ReadSession(const std::string& path, const SessionOptions& options = {});
 
