@@ -288,7 +288,7 @@ TEST(Igtl, ParserHoldsOnlyTheIncompleteMessage) {
   }
   EXPECT_EQ(messages, 500000);
   EXPECT_EQ(parser.Pending().size(), cut);
-#if !defined(__SANITIZE_ADDRESS__)  // ASan's quarantine keeps freed blocks: RSS says nothing
+#if !defined(__SANITIZE_ADDRESS__)        // ASan's quarantine keeps freed blocks: RSS says nothing
   EXPECT_LT(RssKb() - before, 8 * 1024);  // kB
 #else
   (void)before;
