@@ -97,12 +97,17 @@ class BadInput : public ::testing::TestWithParam<Case> {
     ASSERT_EQ(std::system(edit.c_str()), 0) << edit;
     fifo_ = (root_ / "fifo.stl").string();
     ASSERT_EQ(mkfifo(fifo_.c_str(), 0600), 0) << fifo_;
+    // The bad HDF5 sessions ({made}/session_*.h5), written here rather than kept as binaries.
+    const std::string make_sessions = "/usr/bin/python3 " + std::string(ARTHROSIM_SOURCE_DIR) +
+                                      "/tests/cli/make_bad_sessions.py " + root_.string();
+    ASSERT_EQ(std::system(make_sessions.c_str()), 0) << make_sessions;
   }
   static void TearDownTestSuite() { fs::remove_all(root_); }
 
   static std::string Expand(std::string s, const std::string& out) {
-    const std::array<std::pair<const char*, std::string>, 10> subs = {
+    const std::array<std::pair<const char*, std::string>, 11> subs = {
         {{"{nockpt_run}", nockpt_},
+         {"{made}", root_.string()},
          {"{fifo}", fifo_},
          {"{otherbuild_run}", otherbuild_},
          {"{bad}", kBad},
