@@ -9,10 +9,7 @@ namespace arthrosim::sim {
 namespace {
 
 // Copies src into *dst keeping dst's storage when the sizes match.
-void Keep(const Points& src, Points* dst) {
-  if (dst->cols() != src.cols()) dst->resize(3, src.cols());
-  *dst = src;
-}
+void Keep(const Points& src, Points* dst) { *dst = src; }
 
 // Puts back the first columns of *dst that `saved` holds (columns appended since stay).
 void PutBack(const Points& saved, Points* dst) {
@@ -94,15 +91,22 @@ SolveHealth CheckSolve(const State& state) {
   return h;
 }
 
+std::string WorstNodeBody(const Model& model, const SolveHealth& health) {
+  if (health.body < 0) return "";
+  const auto b = static_cast<std::size_t>(health.body);
+  if (health.kind == ConstraintEnd::Kind::kSoftBody) {
+    return b < model.soft_bodies.size() ? model.soft_bodies[b].name : "?";
+  }
+  return b < model.threads.size() ? model.threads[b].name : "?";
+}
+
 std::string DescribeWorstNode(const Model& model, const SolveHealth& health) {
   if (health.body < 0) return "no node";
   const bool soft = health.kind == ConstraintEnd::Kind::kSoftBody;
-  const auto b = static_cast<std::size_t>(health.body);
-  const std::string name = soft ? (b < model.soft_bodies.size() ? model.soft_bodies[b].name : "?")
-                                : (b < model.threads.size() ? model.threads[b].name : "?");
   const std::string what =
       health.finite ? fmt::format("at {:.3g} mm/s", health.max_speed_mm_s) : "not finite";
-  return fmt::format("{} '{}' node {} {}", soft ? "soft body" : "thread", name, health.node, what);
+  return fmt::format("{} '{}' node {} {}", soft ? "soft body" : "thread",
+                     WorstNodeBody(model, health), health.node, what);
 }
 
 }  // namespace arthrosim::sim

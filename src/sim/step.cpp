@@ -73,12 +73,9 @@ void SolveThreads(const Model& model, double h_s, State* state, Workspace* ws) {
 
 // Records that this step's solve diverged and is redone in `substeps` substeps.
 void RecordSolverRetry(const Model& model, const SolveHealth& health, int substeps, State* state) {
-  const bool soft = health.kind == ConstraintEnd::Kind::kSoftBody;
-  const auto b = static_cast<std::size_t>(std::max(health.body, 0));
-  std::string body;
-  if (health.body >= 0) body = soft ? model.soft_bodies[b].name : model.threads[b].name;
   state->events.push_back(
-      Event{state->step + 1, state->time_s + model.options.dt_s, "solver_retry", "", body,
+      Event{state->step + 1, state->time_s + model.options.dt_s, "solver_retry", "",
+            WorstNodeBody(model, health),
             fmt::format("substeps={} node={} speed_mm_s={:.6g} finite={}", substeps, health.node,
                         health.max_speed_mm_s, health.finite ? 1 : 0),
             Vec3::Zero()});

@@ -56,6 +56,9 @@ struct SolveHealth {
 /// Checks every node of every soft body and thread of `state` (no allocation).
 SolveHealth CheckSolve(const State& state);
 
+/// Name of the soft body or thread of the worst node ("" when there is no node).
+std::string WorstNodeBody(const Model& model, const SolveHealth& health);
+
 /// "soft body 'tendon' node 17 at 1.2e+05 mm/s" / "... node 17 not finite": for events and
 /// messages.
 std::string DescribeWorstNode(const Model& model, const SolveHealth& health);
