@@ -959,6 +959,10 @@ def main():
     except Failed as e:
         print("gen_anatomy: check failed: %s" % e, file=sys.stderr)
         return 1
+    except (AssertionError, RuntimeError) as e:  # a boolean or mesh step gave a broken shape
+        print("gen_anatomy: check failed: geometry: %s" % (e or type(e).__name__),
+              file=sys.stderr)
+        return 1
     files = {}
     for name in ("humerus", "acromion"):
         b = bodies[name]
