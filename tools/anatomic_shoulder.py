@@ -663,8 +663,8 @@ def verify(bodies, points, samples, log):
         for o in B:
             w = base.winding(np.array([p], float), B[o]["xyz"], B[o]["surf"])[0]
             base.require(w < 0.5, "portal %s inside %s" % (pname, o))
-    for sname, (s, e) in base.suture_lines(points).items():
-        pts = s + np.linspace(0, 1, 60)[1:, None] * (e - s)
+    for sname, (s, e) in base.suture_lines(points, base.SUTURE_NODES_REPAIR).items():
+        pts = s + np.linspace(0, 1, base.SUTURE_NODES_REPAIR)[1:, None] * (e - s)
         for o in B:
             n_in, _ = base.near_obstacle(pts, "mesh:" + o, B[o])
             base.require(n_in == 0, "%s passes through %s" % (sname, o))

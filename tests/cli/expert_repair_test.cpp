@@ -23,6 +23,8 @@
 #include <vector>
 
 #include "arthrosim/collision/tool_bone_query.h"
+#include "arthrosim/instruments/knot_identify.h"
+#include "arthrosim/instruments/knot_pusher.h"
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "run_state_util.h"
@@ -197,6 +199,52 @@ double FirstThreadCutS() {
     if (e.kind == "thread_cut") return e.time_s;
   }
   return std::numeric_limits<double>::infinity();
+}
+
+// The first event of `kind` (kind empty = none found).
+Event FirstEvent(const std::string& kind) {
+  for (const Event& e : Events()) {
+    if (e.kind == kind) return e;
+  }
+  return Event{};
+}
+
+// The text of `key=` in an event detail ("" when absent).
+std::string DetailText(const Event& e, const std::string& key) {
+  const std::size_t at = e.detail.find(key + "=");
+  if (at == std::string::npos) return "";
+  const std::size_t from = at + key.size() + 1;
+  return e.detail.substr(from, e.detail.find(' ', from) - from);
+}
+
+// The last frame at or before time t_s.
+State FrameAt(double t_s) {
+  const io::RunReader& r = *TheRun().reader;
+  std::int64_t k = 0;
+  while (k + 1 < r.frame_count() && r.time(k + 1) <= t_s + 1e-9) ++k;
+  return r.Frame(k);
+}
+
+// The residual gap of the repair as the knot pusher reports it (docs/operations.md): the
+// smallest distance from a node of region tendon_edge to the box of region footprint, mm.
+double EdgeGapMm(const State& s) {
+  const Region& edge = RegionNamed("tendon_edge");
+  const Region& foot = RegionNamed("footprint");
+  const Points& x = s.soft_bodies[SoftIndex(edge.body)].x;
+  double best = std::numeric_limits<double>::infinity();
+  for (const std::int32_t n : edge.nodes) {
+    const Vec3 p = x.col(n);
+    best = std::min(best, (p - p.cwiseMax(foot.box_min_mm).cwiseMin(foot.box_max_mm)).norm());
+  }
+  return best;
+}
+
+// A thread's alive nodes from `from` to its first dead node.
+std::vector<Vec3> LimbFrom(const ThreadState& th, int from) {
+  std::vector<Vec3> limb;
+  for (int n = from; n < th.x.cols() && th.node_alive[static_cast<std::size_t>(n)]; ++n)
+    limb.push_back(th.x.col(n));
+  return limb;
 }
 
 // The piece (component label) holding every node of a fixed-end region, -1 if split.
@@ -413,40 +461,172 @@ TEST(ExpertRepair, AnchorHoleAt45DegreesAndAnchorSeated) {
   }
 }
 
-// 10. The tails cut: both limbs cut once with the cutter near the anchor, the anchored part of
-// each staying; any knot tied stays tied.
-TEST(ExpertRepair, TailsCutNearTheAnchor) {
+// 7. Both limbs passed through the tendon with the scorpion needle after the anchor: one pass
+// per limb, each bite 10-15 mm from the torn edge, and each limb still stitched to the tendon
+// at the end.
+TEST(ExpertRepair, BothLimbsPassedThroughTheTendon) {
+  const Event anchor = FirstEvent("anchor");
+  ASSERT_EQ(anchor.kind, "anchor");
+  const std::vector<Event> passes = EventsIn("suture_pass", "supraspinatus_tendon", 0, 1e9);
+  std::set<std::string> limbs;
+  for (const Event& e : passes) {
+    limbs.insert(DetailText(e, "thread"));
+    const double bite = DetailValue(e, "bite_mm");
+    std::printf(
+        "pass: %s at %.2f s by %s, bite %.2f mm from the edge, entry %.2f mm from "
+        "bite_target_1, %s stitches\n",
+        DetailText(e, "thread").c_str(), e.time_s, e.tool.c_str(), bite,
+        (e.position_mm - LandmarkMm("bite_target_1")).norm(), DetailText(e, "stitches").c_str());
+    EXPECT_EQ(e.tool, "scorpion_needle");
+    EXPECT_GE(bite, 10.0);
+    EXPECT_LE(bite, 15.0);
+    EXPECT_GT(e.time_s, anchor.time_s);
+  }
+  EXPECT_EQ(passes.size(), 2u);
+  EXPECT_EQ(limbs, (std::set<std::string>{"suture_a", "suture_b"}));
+  std::set<int> stitched;
+  for (const SpringConstraint& c : Last().constraints) {
+    if (c.tag == "stitch") stitched.insert(c.a.index);
+  }
+  EXPECT_EQ(stitched.size(), 2u) << "limbs held in the tendon by stitches at the end";
+}
+
+// 8. The limbs taken with the retriever after the passes and before the knot.
+TEST(ExpertRepair, LimbsTakenWithTheRetriever) {
+  const std::vector<Event> passes = EventsIn("suture_pass", "supraspinatus_tendon", 0, 1e9);
+  ASSERT_FALSE(passes.empty());
+  const Event knot = FirstEvent("knot");
+  const double until = knot.kind.empty() ? 1e9 : knot.time_s;
+  std::set<std::string> limbs;
+  for (const Event& e : EventsIn("grasp", "", passes.back().time_s, until)) {
+    if (e.tool == "retriever") limbs.insert(e.body);
+  }
+  std::printf(
+      "retrieval: %zu limbs taken with the retriever between the last pass (%.2f s) and "
+      "the knot (%.2f s)\n",
+      limbs.size(), passes.back().time_s, until);
+  EXPECT_GE(limbs.size(), 1u);
+  for (const std::string& l : limbs) EXPECT_TRUE(l == "suture_a" || l == "suture_b") << l;
+}
+
+// 9. The knot: thrown by the knot pusher over both limbs and identified as a real knot
+// (IdentifyKnot), then seated on its target (the target_node-th node from each limb's exit)
+// within 1 mm, secure under the pull test; checked again from the seating frame's thread
+// geometry.
+TEST(ExpertRepair, KnotTiedAndSeatedOnItsTarget) {
+  const Event knot = FirstEvent("knot");
+  const Event seated = FirstEvent("knot_seated");
+  ASSERT_EQ(knot.kind, "knot") << "no knot identified";
+  ASSERT_EQ(seated.kind, "knot_seated") << "knot never seated";
+  const std::string type = DetailText(knot, "type");
+  std::printf(
+      "knot: %s at %.2f s (%s votes, %s springs); seated at %.2f s as %s, target error "
+      "%s mm, slip %s mm, secure %s, gap %s mm\n",
+      type.c_str(), knot.time_s, DetailText(knot, "votes").c_str(),
+      DetailText(knot, "springs").c_str(), seated.time_s, DetailText(seated, "type").c_str(),
+      DetailText(seated, "target_error_mm").c_str(), DetailText(seated, "slip_mm").c_str(),
+      DetailText(seated, "secure").c_str(), DetailText(seated, "gap_mm").c_str());
+  EXPECT_EQ(knot.tool, "knot_pusher");
+  EXPECT_TRUE(type == "half_hitch" || type == "granny" || type == "square" ||
+              type == "half_hitches")
+      << type;
+  EXPECT_GE(DetailValue(knot, "half_hitches"), 1.0);
+  EXPECT_GT(seated.time_s, knot.time_s);
+  EXPECT_LE(DetailValue(seated, "target_error_mm"), 1.0);
+  EXPECT_EQ(DetailValue(seated, "secure"), 1.0);
+  EXPECT_LE(DetailValue(seated, "slip_mm"), 3.0);
+  // From the run file: the knot at the seating frame, on its target nodes, the limbs knotted.
+  const State s = FrameAt(seated.time_s);
+  const std::vector<instruments::KnotRef> knots = instruments::FindKnots(s);
+  ASSERT_EQ(knots.size(), 1u);
+  const instruments::KnotRef& k = knots[0];
+  const ThreadState& a = s.threads[static_cast<std::size_t>(k.thread_a)];
+  const ThreadState& b = s.threads[static_cast<std::size_t>(k.thread_b)];
+  const int target = Shoulder().operations.knot_pusher.target_node;
+  const int base_a = instruments::TissueSideNode(s, k.thread_a);
+  const int base_b = instruments::TissueSideNode(s, k.thread_b);
+  const Vec3 knot_at = 0.5 * (a.x.col(k.node_a) + b.x.col(k.node_b));
+  const Vec3 target_at = 0.5 * (a.x.col(base_a + target) + b.x.col(base_b + target));
+  const instruments::KnotIdentification id =
+      instruments::IdentifyKnot(LimbFrom(a, base_a), LimbFrom(b, base_b));
+  std::printf(
+      "knot at seating: nodes %d/%d, targets %d/%d, %.3f mm from them; geometry: %s "
+      "(%d/%d votes)\n",
+      k.node_a, k.node_b, base_a + target, base_b + target, (knot_at - target_at).norm(),
+      instruments::KnotTypeName(id.type), id.votes, id.projections);
+  EXPECT_LE((knot_at - target_at).norm(), 1.0);
+  EXPECT_NE(id.type, instruments::KnotType::kNone);
+  EXPECT_NE(id.type, instruments::KnotType::kUnknown);
+}
+
+// The repair's residual gap (docs/operations.md, knot_seated gap_mm): the smallest distance from
+// the torn edge (region tendon_edge) to the footprint box, measured from the run file before
+// the passes, at the knot's seating and at the end; the knot_seated event reports the seating
+// frame's figure.
+TEST(ExpertRepair, TendonEdgeGapMeasured) {
+  const Event anchor = FirstEvent("anchor");
+  const Event seated = FirstEvent("knot_seated");
+  ASSERT_EQ(anchor.kind, "anchor");
+  ASSERT_EQ(seated.kind, "knot_seated");
+  const double before = EdgeGapMm(FrameAt(anchor.time_s));
+  const double at_seat = EdgeGapMm(FrameAt(seated.time_s));
+  const double end = EdgeGapMm(Last());
+  std::printf(
+      "tendon edge to footprint: %.3f mm at the anchor (%.2f s), %.3f mm at the knot's "
+      "seating (%.2f s; event %s), %.3f mm at the end\n",
+      before, anchor.time_s, at_seat, seated.time_s, DetailText(seated, "gap_mm").c_str(), end);
+  EXPECT_NEAR(DetailValue(seated, "gap_mm"), at_seat, 0.001);
+}
+
+// Issue #16's target: the seated knot holds the edge within 2 mm of the footprint. Not met: the
+// knot ties the two limbs over their bites and the limbs run round the head from the anchor
+// with slack (edge-footprint gap ~12 mm at the end, see TendonEdgeGapMeasured).
+TEST(ExpertRepair, DISABLED_TendonEdgeOnTheFootprint) { EXPECT_LE(EdgeGapMm(Last()), 2.0); }
+
+// 10. The tails cut above the seated knot: both limbs cut once with the cutter, near the knot,
+// after it was seated; the knot intact (its springs, its nodes alive, the limbs still knotted).
+TEST(ExpertRepair, TailsCutAboveTheKnot) {
   const std::vector<Event> cuts = EventsIn("thread_cut", "", 0, 1e9);
+  const Event seated = FirstEvent("knot_seated");
+  ASSERT_EQ(seated.kind, "knot_seated") << "no seated knot to cut above";
   std::set<std::string> limbs;
   double far = 0;
   for (const Event& e : cuts) {
     limbs.insert(e.body);
-    far = std::max(far, (e.position_mm - LandmarkMm("anchor_site_1")).norm());
+    far = std::max(far, (e.position_mm - seated.position_mm).norm());
     EXPECT_EQ(e.tool, "cutter");
+    EXPECT_GT(e.time_s, seated.time_s);
   }
-  std::printf("tails: %zu cuts on %zu limbs, farthest %.2f mm from anchor_site_1\n", cuts.size(),
+  std::printf("tails: %zu cuts on %zu limbs, farthest %.2f mm from the seated knot\n", cuts.size(),
               limbs.size(), far);
   EXPECT_EQ(limbs.size(), 2u);
-  EXPECT_LT(far, 15.0);
+  EXPECT_LT(far, 10.0);
   for (const ThreadState& t : Last().threads) {
     const long alive = std::count(t.node_alive.begin(), t.node_alive.end(), 1);
     EXPECT_GE(alive, 2);
     EXPECT_LT(alive, static_cast<long>(t.node_alive.size()));
   }
-  // A knot (constraints tagged "knot") present before the first cut is still there at the end.
-  std::size_t knots_before = 0, knots_after = 0;
-  if (!cuts.empty()) {
-    std::int64_t k = 0;
-    while (k + 1 < TheRun().reader->frame_count() &&
-           TheRun().reader->time(k + 1) < cuts.front().time_s)
-      ++k;
-    const State before = TheRun().reader->Frame(k);
-    for (const SpringConstraint& c : before.constraints) knots_before += c.tag == "knot";
-  }
-  for (const SpringConstraint& c : Last().constraints) knots_after += c.tag == "knot";
-  std::printf("tails: knot springs %zu before the cut, %zu at the end\n", knots_before,
-              knots_after);
-  EXPECT_GE(knots_after, knots_before);
+  ASSERT_FALSE(cuts.empty());
+  const State before = FrameAt(cuts.front().time_s - 0.5 * Shoulder().options.dt_s);
+  const std::vector<instruments::KnotRef> was = instruments::FindKnots(before);
+  const std::vector<instruments::KnotRef> now = instruments::FindKnots(Last());
+  ASSERT_EQ(was.size(), 1u);
+  ASSERT_EQ(now.size(), 1u);
+  const instruments::KnotRef& k = now[0];
+  const ThreadState& a = Last().threads[static_cast<std::size_t>(k.thread_a)];
+  const ThreadState& b = Last().threads[static_cast<std::size_t>(k.thread_b)];
+  const instruments::KnotIdentification id =
+      instruments::IdentifyKnot(LimbFrom(a, instruments::TissueSideNode(Last(), k.thread_a)),
+                                LimbFrom(b, instruments::TissueSideNode(Last(), k.thread_b)));
+  std::printf(
+      "tails: knot springs %zu before the first cut, %zu at the end; knot nodes alive "
+      "%d/%d; limbs at the end: %s (%d/%d votes)\n",
+      was[0].springs.size(), k.springs.size(), a.node_alive[k.node_a], b.node_alive[k.node_b],
+      instruments::KnotTypeName(id.type), id.votes, id.projections);
+  EXPECT_EQ(k.id, was[0].id);
+  EXPECT_EQ(k.springs.size(), was[0].springs.size());
+  EXPECT_EQ(a.node_alive[static_cast<std::size_t>(k.node_a)], 1);
+  EXPECT_EQ(b.node_alive[static_cast<std::size_t>(k.node_b)], 1);
 }
 
 // The run is sound, on every 100th frame and the last: finite everywhere; nothing goes through
@@ -578,8 +758,8 @@ TEST(ExpertRepair, DISABLED_CutSutureStubsStayOutOfBone) {
   EXPECT_LE(deepest, 0.5);
 }
 
-// Every instrument the script uses was inserted; the suture instruments wait for the suture
-// segment of the script.
+// Every instrument of the repair was inserted: the ten of the scene (the hook, an eleventh, is
+// not needed).
 TEST(ExpertRepair, InstrumentsUsed) {
   std::set<std::string> used;
   for (const Event& e : Events()) {
@@ -588,8 +768,8 @@ TEST(ExpertRepair, InstrumentsUsed) {
   std::string list;
   for (const std::string& u : used) list += u + " ";
   std::printf("instruments used: %s\n", list.c_str());
-  for (const char* name :
-       {"scissors", "shaver", "electrocautery", "burr", "awl", "grasper", "cutter"}) {
+  for (const char* name : {"scissors", "shaver", "electrocautery", "burr", "awl", "grasper",
+                           "scorpion_needle", "retriever", "knot_pusher", "cutter"}) {
     EXPECT_EQ(used.count(name), 1u) << name;
   }
 }
