@@ -606,8 +606,14 @@ def vec(p):
     return "[%s]" % ", ".join(fmt(c) for c in p)
 
 
-def scenario_text(name, duration, points, with_biceps, title, extra_header, anchored_sutures):
-    """The scenario YAML (docs/scenario-format.md)."""
+def scenario_text(name, duration, points, with_biceps, title, extra_header, anchored_sutures,
+                  mesh_dir="meshes", anatomy_header=None, extra_bodies=(), regions=None,
+                  landmark_body=None):
+    """The scenario YAML (docs/scenario-format.md). The keyword arguments describe the anatomic
+    variant (tools/anatomic_shoulder.py): its mesh folder, header lines, extra rigid bodies
+    (YAML lines), region boxes and landmark bodies; the defaults give the primitive scene."""
+    regions = region_boxes() if regions is None else regions
+    landmark_body = LANDMARK_BODY if landmark_body is None else landmark_body
     L = []
     w = L.append
     w("# arthrosim scenario: %s" % title)
@@ -615,10 +621,12 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("#")
     w("# Frame: right shoulder, origin at the humeral-head centre, x lateral, y anterior,")
     w("# z superior, millimetres. Beach-chair position: z is up, so gravity is -z.")
-    w("# Anatomy (scenarios/README.md): humeral head diameter 45 mm; greater tuberosity with the")
-    w("# supraspinatus footprint 23 x 16 mm (Curtis 2006), medial edge at the articular margin;")
-    w("# acromion undersurface 10 mm above the head with an anterior spur (hook); supraspinatus")
-    w("# muscle and tendon share a conforming interface (joins); full-thickness tear, tendon edge")
+    for line in anatomy_header or [
+            "Anatomy (scenarios/README.md): humeral head diameter 45 mm; greater tuberosity with the",
+            "supraspinatus footprint 23 x 16 mm (Curtis 2006), medial edge at the articular margin;",
+            "acromion undersurface 10 mm above the head with an anterior spur (hook); supraspinatus",
+            "muscle and tendon share a conforming interface (joins); full-thickness tear, tendon edge"]:
+        w("# " + line)
     arc, dx = retraction()
     w("# retracted medial of the footprint by %.1f mm in x (%.1f mm of arc along the tendon)." % (
         dx, arc))
@@ -633,11 +641,12 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("gravity: [0, 0, -9810]")
     w("solver: {integrator: implicit_euler, cg_max_iterations: 100, cg_tolerance: 1.0e-6}")
     w("output: {every: 1}")
-    w("# Tissue trapped between an instrument and bone: the earlier rule (trapped_gap_mm 0: the")
-    w("# advance along the push bounded per step, no floor, free sliding). The scripted demonstrations")
-    w("# and the expert repair were tuned under it; with the default floor (1 mm) and friction (0.5)")
-    w("# their tools stick where they press tissue on bone (docs/haptics.md, tests/sim/trapped_tissue_test).")
-    w("haptics: {trapped_gap_mm: 0}")
+    if anchored_sutures:  # the repair scenes' scripts; bench_full keeps the default rule
+        w("# Tissue trapped between an instrument and bone: the earlier rule (trapped_gap_mm 0: the")
+        w("# advance along the push bounded per step, no floor, free sliding). The scripted demonstrations")
+        w("# and the expert repair were tuned under it; with the default floor (1 mm) and friction (0.5)")
+        w("# their tools stick where they press tissue on bone (docs/haptics.md, tests/sim/trapped_tissue_test).")
+        w("haptics: {trapped_gap_mm: 0}")
     w("")
     w("materials:")
     w("  # Passive skeletal muscle at rest: E 25 kPa (shear-wave elastography of the deltoid:")
@@ -653,16 +662,18 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("           rayleigh_mass: 0.1, rayleigh_stiffness: 0.001}")
     w("")
     w("bodies:")
-    w("  - {name: humerus, kind: rigid, mesh: meshes/humerus.msh, hardness: 1}")
+    w("  - {name: humerus, kind: rigid, mesh: %s/humerus.msh, hardness: 1}" % mesh_dir)
     w("  # Acromion: denser cortical bone than the sparse greater-tuberosity footprint (BV/TV")
     w("  # 0.02-0.04, Kirchhoff 2012), so burr removal is slower [K: divisor chosen, not measured].")
-    w("  - {name: acromion, kind: rigid, mesh: meshes/acromion.msh, hardness: 3}")
-    w("  - {name: supraspinatus_muscle, kind: soft, mesh: meshes/supraspinatus_muscle.msh,")
+    w("  - {name: acromion, kind: rigid, mesh: %s/acromion.msh, hardness: 3}" % mesh_dir)
+    for line in extra_bodies:
+        w(line)
+    w("  - {name: supraspinatus_muscle, kind: soft, mesh: %s/supraspinatus_muscle.msh," % mesh_dir)
     w("     material: muscle, fixed: [muscle_medial_end]}")
-    w("  - {name: supraspinatus_tendon, kind: soft, mesh: meshes/supraspinatus_tendon.msh,")
+    w("  - {name: supraspinatus_tendon, kind: soft, mesh: %s/supraspinatus_tendon.msh," % mesh_dir)
     w("     material: tendon}")
     if with_biceps:
-        w("  - {name: biceps_tendon, kind: soft, mesh: meshes/biceps_tendon.msh, material: tendon,")
+        w("  - {name: biceps_tendon, kind: soft, mesh: %s/biceps_tendon.msh, material: tendon," % mesh_dir)
         w("     fixed: [biceps_ends_proximal, biceps_ends_distal]}")
     if anchored_sutures:
         w("  # Two limbs of a double-loaded anchor, running out toward the lateral portal. They belong to")
@@ -709,7 +720,7 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("")
     w("landmarks:")
     for lname, p in points.items():
-        body = LANDMARK_BODY.get(lname)
+        body = landmark_body.get(lname)
         if body == "biceps_tendon" and not with_biceps:
             body = None
         if body:
@@ -720,7 +731,7 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("# Node sets: the nodes of `body` inside the box. biceps_ends is two boxes (the schema has")
     w("# one box per region), both listed in the biceps body's `fixed`.")
     w("regions:")
-    for rname, (body, (lo, hi)) in region_boxes().items():
+    for rname, (body, (lo, hi)) in regions.items():
         if body == "biceps_tendon" and not with_biceps:
             continue
         w("  - {name: %s, body: %s, box: {min: %s, max: %s}}" % (rname, body, vec(lo), vec(hi)))
@@ -923,13 +934,34 @@ def main():
                     help="scenario directory (meshes go to OUT/meshes)")
     ap.add_argument("--check", action="store_true", help="build and verify only, write nothing")
     ap.add_argument("--quiet", action="store_true")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="override a parameter of tools/anatomic_shoulder.py (a number), e.g. "
+                    "NECK_SHAFT_DEG=128: shows that the dimension checks catch it")
     args = ap.parse_args()
     log = (lambda *_: None) if args.quiet else print
+    # tools/anatomic_shoulder.py imports this file as gen_anatomy: share one module instance.
+    sys.modules.setdefault("gen_anatomy", sys.modules[__name__])
+    import anatomic_shoulder
+    for item in args.set:
+        key, _, value = item.partition("=")
+        if not hasattr(anatomic_shoulder, key) or not isinstance(getattr(anatomic_shoulder, key),
+                                                                 float):
+            print("gen_anatomy: --set %s: not a numeric parameter of anatomic_shoulder.py" % key,
+                  file=sys.stderr)
+            return 2
+        setattr(anatomic_shoulder, key, float(value))
     try:
         bodies, points = build(log)
         verify(bodies, points, log)
+        log("-- anatomic scene (tools/anatomic_shoulder.py)")
+        a_bodies, a_points, a_samples = anatomic_shoulder.build(log)
+        anatomic_shoulder.verify(a_bodies, a_points, a_samples, log)
     except Failed as e:
         print("gen_anatomy: check failed: %s" % e, file=sys.stderr)
+        return 1
+    except (AssertionError, RuntimeError) as e:  # a boolean or mesh step gave a broken shape
+        print("gen_anatomy: check failed: geometry: %s" % (e or type(e).__name__),
+              file=sys.stderr)
         return 1
     files = {}
     for name in ("humerus", "acromion"):
@@ -953,6 +985,7 @@ def main():
          "nodes / 2026 tets, tendon 398 / 1261, bones 3010 / 6016 and 69 / 134 triangles) plus",
          "two 60-node threads; this file uses the same meshes as rotator_cuff_repair.yaml",
          "without the biceps so the FEM size matches the paper."], anchored_sutures=False)
+    files.update(anatomic_shoulder.files(a_bodies, a_points))
     if args.check:
         return 0
     for rel, text in sorted(files.items()):

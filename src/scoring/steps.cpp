@@ -126,11 +126,26 @@ CriterionOutcome InViewCriterion(const PlanStep& step, const Criterion& c, const
   return out;
 }
 
-// First action of a step: its operation or a criterion's event by an allowed instrument.
+// Whether event e (an action of the step) meets one of the step's event criteria but for their
+// count: the right kind, body, place and details.
+bool CountsTowardStep(const PlanStep& step, const Model& model, const Event& e) {
+  return std::any_of(step.complete.begin(), step.complete.end(), [&](const Criterion& c) {
+    return c.kind == Criterion::Kind::kEvent && c.event == e.kind &&
+           EventMismatch(model, c, e).empty();
+  });
+}
+
+// First action of a step: its operation or a criterion's event by an allowed instrument; of
+// those, the first that counts toward one of its event criteria if any does (the footprint's
+// first burr event, not the acromioplasty's before it), else the first.
 double FirstAction(const PlanStep& step, const RunData& run) {
-  for (const Event& e : run.events)
-    if (IsStepAction(step, e)) return e.time_s;
-  return kNaN;
+  double first = kNaN;
+  for (const Event& e : run.events) {
+    if (!IsStepAction(step, e)) continue;
+    if (CountsTowardStep(step, run.model, e)) return e.time_s;
+    if (std::isnan(first)) first = e.time_s;
+  }
+  return first;
 }
 
 // Latest insertion of an allowed instrument at or before `t_s` (the first insertion if none
@@ -147,6 +162,18 @@ double Insertion(const PlanStep& step, const RunData& run, double t_s) {
     }
   }
   return std::isnan(latest) ? first : latest;
+}
+
+// When the step's hand became free for it: the last action of its instruments before
+// `first_action_s` that does not count toward the step (the spur burred before the same burr
+// goes to the footprint), or NaN if there is none.
+double PreviousTaskEnd(const PlanStep& step, const RunData& run, double first_action_s) {
+  double last = kNaN;
+  for (const Event& e : run.events) {
+    if (!(e.time_s < first_action_s)) break;
+    if (IsStepAction(step, e) && !CountsTowardStep(step, run.model, e)) last = e.time_s;
+  }
+  return last;
 }
 
 StepResult EvaluateStep(const PlanStep& step, const RunData& run, double* first_action,
@@ -176,6 +203,10 @@ StepResult EvaluateStep(const PlanStep& step, const RunData& run, double* first_
   *first_action = FirstAction(step, run);
   const double reference = std::isnan(*first_action) ? end : *first_action;
   r.start_s = Insertion(step, run, std::isfinite(reference) ? reference : run.time_s.back());
+  // One insertion for two steps (the burr from the spur to the footprint): this step starts when
+  // the instrument's previous task ended.
+  const double previous_end = PreviousTaskEnd(step, run, *first_action);
+  if (previous_end > r.start_s) r.start_s = previous_end;
   if (std::isnan(r.start_s)) r.start_s = first_seen;
   if (std::isnan(*first_action)) *first_action = r.start_s;
   r.completed = missing.empty();

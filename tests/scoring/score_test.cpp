@@ -81,6 +81,17 @@ TEST(Score, CleanRunPassesEveryStep) {
   EXPECT_LT(Find(r, "camera.horizon_deviation").value, 1e-6);
 }
 
+// One insertion of the awl for a stray hole 10 mm off the site (frame 55) and then the hole
+// (frame 70): the step starts when the stray action ended, not at the insertion (frame 50).
+TEST(Score, AStepStartsWhenItsInstrumentsPreviousTaskEnds) {
+  SynthSpec spec;
+  spec.stray_hole_frame = 55;
+  const ScoreReport r = ScoreSynth("stray_hole", spec).report;
+  EXPECT_TRUE(Step(r, "hole").passed) << Step(r, "hole").reason;
+  EXPECT_NEAR(Step(r, "hole").start_s, 1.1, 1e-12);
+  EXPECT_NEAR(Step(r, "hole").duration_s, 0.3, 1e-12);
+}
+
 TEST(Score, AnchorAngleOutsideBandFailsTheStep) {
   SynthSpec spec;
   spec.hole_angle_deg = 70;

@@ -169,6 +169,10 @@ void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
         t0.force_n = Vec3(0, 0, 1.0);
         s.tool_contacts.push_back({0, ConstraintEnd::Kind::kBone, 0, kSite});
       }
+      if (f == spec.stray_hole_frame) {  // a first hole 10 mm off the site
+        s.events.push_back({f, s.time_s, "hole", "awl", "humerus", "depth_mm=15 angle_deg=45",
+                            kSite + Vec3(10, 0, 0)});
+      }
       if (f == spec.hole_frame) {
         std::string detail = "depth_mm=" + std::to_string(spec.hole_depth_mm) +
                              " angle_deg=" + std::to_string(spec.hole_angle_deg);

@@ -19,6 +19,7 @@ struct SynthSpec {
   double hole_offset_mm = 0;     ///< hole event position moved along +x from the site
   double hole_volume_mm3 = 0;    ///< > 0: the hole event books this volume_mm3 (a removal)
   int hole_frame = 70;           ///< frame of the hole event (awl inserted 50..80)
+  int stray_hole_frame = -1;     ///< >= 0: an earlier hole event 10 mm off the site here
   int burr_frame = 30;           ///< frame of the burr event (burr inserted 10..40)
   bool burr_late = false;        ///< burr inserted frames 85..95, removal at 90 (after the hole)
   bool hole_by_grasper = false;  ///< the hole event names the grasper
