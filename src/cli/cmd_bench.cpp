@@ -1,5 +1,5 @@
 // arthrosim bench SCENARIO [--steps N] [--trajectory F] [--abusive F] [--ops-dir D]
-//                          [--beam-mesh F] [--render]
+//                          [--beam-mesh F] [--trace F.csv] [--render]
 // Times the step stage by stage on one thread and prints a table plus one name=value line per
 // figure (for scripts). Also runs the cantilever beam of the physics verification (speed at
 // equal accuracy: ms per step and how far the settled tip is from the static solution).
@@ -8,11 +8,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numeric>
 #include <vector>
 
 #include "arthrosim/collision/bench_scene.h"
+#include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/input/open_source.h"
 #include "arthrosim/io/run_writer.h"
@@ -28,6 +30,7 @@ namespace {
 struct BenchArgs {
   std::string scenario, trajectory, beam_mesh = "tests/testdata/beam/beam_2.5.msh";
   std::string abusive = "trajectories/abusive_sweep.yaml", ops_dir = "trajectories/ops";
+  std::string trace;  // per-step CSV of the main figures' steps (empty: none)
   int steps = 100;
   int threads = 1;
   bool render = false;
@@ -72,8 +75,9 @@ struct Series {
 
 // Times `steps` steps of the trajectory (< 0: until it is finished, at most 100 000) after a
 // short warm-up; `instrument` (or -1) marks the steps where a slot holds it.
+// `trace` (or null): one CSV row per timed step (docs in AddBenchCommand's --trace).
 Series TimeScenario(const Model& model, const std::string& trajectory, int steps,
-                    int instrument = -1) {
+                    int instrument = -1, std::FILE* trace = nullptr) {
   input::SourceOptions options;
   options.dt_s = model.options.dt_s;
   auto source = input::OpenInputSource(trajectory.empty() ? "none" : trajectory, model, options);
@@ -117,6 +121,14 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
       if (instrument >= 0 && state.tools[slot].instrument == instrument) holds |= 1u << slot;
     }
     s.holds.push_back(holds);
+    if (trace != nullptr) {
+      fmt::print(trace,
+                 "{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{}\n",
+                 state.step, t.total_ms, t.kinematics_ms, t.collision_ms, t.soft.rotations_ms,
+                 t.soft.assembly_ms, t.soft.factor_ms, t.soft.solve_ms, t.instruments_ms,
+                 t.soft.cg_iterations, t.soft.contact_resolves, t.soft.active_contacts,
+                 t.soft.refactored ? 1 : 0, t.soft.anchor_moved ? 1 : 0);
+    }
     s.last_residual = t.soft.cg_relative_residual;
     s.refactors += t.soft.refactored ? 1 : 0;
     if (t.soft.factor_work) {
@@ -278,12 +290,26 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
                   "depend on it); the soft-tissue suite always runs on one")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  cmd->add_option("--trace", a->trace,
+                  "Per-step CSV of the main figures' timed steps: wall ms of the step, its "
+                  "stages (kinematics = tool proxies), factor work, CG iterations, contact "
+                  "re-solves, contact and spring terms, factor switched in / requested");
   cmd->add_flag("--render", a->render, "Also measure rendering and encoding frame rates");
   cmd->callback([a, exit_code] {
     SetThreadCount(a->threads);
     const Model model = io::LoadScenario(a->scenario);
     fmt::print("bench_threads={}\n", a->threads);
-    PrintScenario(model, TimeScenario(model, a->trajectory, a->steps), a->steps);
+    std::FILE* trace = nullptr;
+    if (!a->trace.empty()) {
+      trace = std::fopen(a->trace.c_str(), "w");
+      if (trace == nullptr) throw InputError(a->trace, 0, "--trace", "cannot write this file");
+      fmt::print(trace,
+                 "step,total_ms,kinematics_ms,collision_ms,rotations_ms,assembly_ms,factor_ms,"
+                 "solve_ms,instruments_ms,cg_iterations,contact_resolves,active_terms,"
+                 "refactored,factor_requested\n");
+    }
+    PrintScenario(model, TimeScenario(model, a->trajectory, a->steps, -1, trace), a->steps);
+    if (trace != nullptr) std::fclose(trace);
     PrintAbusive(model, a->abusive);
     PrintOperations(model, a->ops_dir);
     SetThreadCount(1);  // its figures are process CPU time

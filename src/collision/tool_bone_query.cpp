@@ -62,18 +62,45 @@ struct CoreNearest {
   Vec3 out = Vec3::UnitZ();
 };
 
+// Pruning (the answer is bit for bit that of testing every candidate): the exact distance to
+// the candidate whose box is nearest bounds the nearest distance from above by `bound`; a
+// candidate whose box lower bound exceeds bound (1 + kPruneRelative) + kPruneAbsoluteMm can be
+// neither nearer nor a tie at any point of the scan (the running best never exceeds the nearest
+// distance by more than the tie tolerance), so it is skipped without its exact test. The scan
+// keeps the candidates' order, so the pseudo-normal sums run in the same order.
+constexpr double kPruneRelative = 1e-6;
+constexpr double kPruneAbsoluteMm = 1e-9;
+
+ClosestPair ExactToTriangle(const Simplex& core, const BoneQueryWorld::Entry& e, std::int32_t t) {
+  const mesh::Tri& tri = e.tris[static_cast<std::size_t>(t)];
+  return Closest(core, TriangleSimplex(e.positions[static_cast<std::size_t>(tri[0])],
+                                       e.positions[static_cast<std::size_t>(tri[1])],
+                                       e.positions[static_cast<std::size_t>(tri[2])]));
+}
+
 CoreNearest NearestTo(const Simplex& core, const BoneQueryWorld::Entry& e,
-                      const std::vector<std::int32_t>& cand) {
+                      const std::vector<std::int32_t>& cand, std::vector<double>* lower,
+                      std::int64_t* exact_tests) {
   CoreNearest r;
+  auto exact = [&](std::int32_t t) { return ExactToTriangle(core, e, t); };
+  const Box core_box = CoreBox(core);
+  lower->resize(cand.size());
+  std::size_t nearest_box = 0;
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    (*lower)[i] = CoreBoxLowerBound(core, core_box, e.bvh.TriangleBox(cand[i]));
+    if ((*lower)[i] < (*lower)[nearest_box]) nearest_box = i;
+  }
+  const double bound = cand.empty() ? 0.0 : std::sqrt(exact(cand[nearest_box]).dist2);
+  *exact_tests += cand.empty() ? 0 : 1;
+  const double cutoff = bound * (1 + kPruneRelative) + kPruneAbsoluteMm;
   double best2 = std::numeric_limits<double>::infinity();
   ClosestPair best_pair;
   Vec3 pseudo = Vec3::Zero();
-  for (const std::int32_t t : cand) {
-    const mesh::Tri& tri = e.tris[static_cast<std::size_t>(t)];
-    const ClosestPair c =
-        Closest(core, TriangleSimplex(e.positions[static_cast<std::size_t>(tri[0])],
-                                      e.positions[static_cast<std::size_t>(tri[1])],
-                                      e.positions[static_cast<std::size_t>(tri[2])]));
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    if ((*lower)[i] > cutoff) continue;
+    const std::int32_t t = cand[i];
+    const ClosestPair c = exact(t);
+    ++*exact_tests;
     if (c.dist2 < best2 * (1 - kTieRelative)) {
       best2 = c.dist2;
       best_pair = c;
@@ -134,10 +161,22 @@ ToolBoneHit ToolBoneClearance(const std::vector<ToolPrimitive>& primitives, doub
     for (std::size_t g = 0; g < world->bones.size(); ++g) {
       const BoneQueryWorld::Entry& e = world->bones[g];
       if (e.bvh.empty() || BoxDistance(core_box, e.bvh.Bounds()) > search) continue;
+      // Only triangles that can be the nearest or tie with it are gathered: an upper bound u of
+      // the nearest distance (the exact distance to the triangle Descend reaches) caps the
+      // search at u (1 + kPruneRelative) + kPruneAbsoluteMm (see NearestTo; the triangle itself
+      // is gathered, so the nearest distance is <= u). Same answer, bit for bit.
+      auto lower = [&](const Box& b) { return CoreBoxLowerBound(prim.core, core_box, b); };
+      double cutoff = search;
+      const std::int32_t first = e.bvh.Descend(lower);
+      if (first >= 0) {
+        const double u = std::sqrt(ExactToTriangle(prim.core, e, first).dist2);
+        ++world->exact_tests;
+        cutoff = std::min(search, u * (1 + kPruneRelative) + kPruneAbsoluteMm);
+      }
       cand.clear();
-      e.bvh.QueryIf(
-          [&](const Box& b) { return CoreBoxLowerBound(prim.core, core_box, b) <= search; }, &cand);
-      const CoreNearest n = NearestTo(prim.core, e, cand);
+      e.bvh.QueryIf([&](const Box& b) { return lower(b) <= cutoff; }, &cand);
+      const CoreNearest n =
+          NearestTo(prim.core, e, cand, &world->lower_bounds, &world->exact_tests);
       if (!n.found) continue;
       const double clearance = n.signed_mm - prim.radius_mm;
       if (clearance < hit.clearance_mm) {
@@ -180,7 +219,7 @@ double PointBoneSignedDistance(const Vec3& p, BoneQueryWorld* world) {
     }
     cand.clear();
     e.bvh.Query(query.Inflated(reach), &cand);
-    const CoreNearest n = NearestTo(point, e, cand);
+    const CoreNearest n = NearestTo(point, e, cand, &world->lower_bounds, &world->exact_tests);
     if (n.found) best = std::min(best, n.signed_mm);  // inside any bone wins
   }
   return best;

@@ -104,15 +104,37 @@ void SoftSystem::FactorPattern(const std::vector<FactorSource>& src, FactorBuild
       nodes.push_back(s);
     }
   }
-  std::vector<std::array<std::int32_t, 2>>& pairs = scratch_pairs_;
-  pairs.clear();
+  // The distinct pairs in ascending (i, j) order, by a counting sort on i and a sort of each
+  // (short) row: the list a sort of all edges gives, at a fraction of its cost.
+  const auto n_nodes = nodes.size();
+  std::vector<std::int32_t>& row_at = scratch_row_at_;
+  std::vector<std::int32_t>& cols = scratch_cols_;
+  row_at.assign(n_nodes + 1, 0);
   for (const auto& e : edges) {
     const std::int32_t i = compact[static_cast<std::size_t>(e[0])];
     const std::int32_t j = compact[static_cast<std::size_t>(e[1])];
-    if (i >= 0 && j >= 0) pairs.push_back({i, j});  // slot order = node order: i < j
+    if (i >= 0 && j >= 0) ++row_at[static_cast<std::size_t>(i) + 1];
   }
-  std::sort(pairs.begin(), pairs.end());
-  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  for (std::size_t i = 0; i < n_nodes; ++i) row_at[i + 1] += row_at[i];
+  cols.resize(static_cast<std::size_t>(row_at[n_nodes]));
+  for (const auto& e : edges) {
+    const std::int32_t i = compact[static_cast<std::size_t>(e[0])];
+    const std::int32_t j = compact[static_cast<std::size_t>(e[1])];
+    if (i >= 0 && j >= 0) cols[static_cast<std::size_t>(row_at[static_cast<std::size_t>(i)]++)] = j;
+  }
+  std::vector<std::array<std::int32_t, 2>>& pairs = scratch_pairs_;
+  pairs.clear();
+  std::size_t begin = 0;
+  for (std::size_t i = 0; i < n_nodes; ++i) {  // row_at[i] is now the end of row i
+    const auto end = static_cast<std::size_t>(row_at[i]);
+    std::sort(cols.begin() + static_cast<std::ptrdiff_t>(begin),
+              cols.begin() + static_cast<std::ptrdiff_t>(end));
+    for (std::size_t k = begin; k < end; ++k) {
+      if (k == begin || cols[k] != cols[k - 1])
+        pairs.push_back({static_cast<std::int32_t>(i), cols[k]});  // slot order: i < j
+    }
+    begin = end;
+  }
   if (f->analysed && nodes == f->nodes && pairs == f->pairs) return;
   f->nodes = nodes;
   f->pairs = pairs;

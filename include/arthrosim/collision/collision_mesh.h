@@ -86,6 +86,11 @@ class TriangleBvh {
   /// box inside it (a conservative culling test).
   template <class Keep>
   void QueryIf(const Keep& keep, std::vector<std::int32_t>* out) const;
+  /// The triangle of the leaf reached from the root by always taking the child whose box has
+  /// the smaller lower(box) (the left one on a tie); -1 for an empty tree. A cheap first
+  /// candidate for a nearest-triangle search (any triangle gives an upper bound).
+  template <class Lower>
+  std::int32_t Descend(const Lower& lower) const;
   /// Appends (this triangle, other triangle) pairs whose boxes are within `margin` mm of each
   /// other, sorted ascending.
   void QueryPairs(const TriangleBvh& other, double margin,
@@ -127,6 +132,19 @@ void WalkBoxTree(const std::vector<Node>& nodes, int depth, const ItemOf& item_o
       stack[top++] = node.left;
     }
   }
+}
+
+template <class Lower>
+std::int32_t TriangleBvh::Descend(const Lower& lower) const {
+  if (empty()) return -1;
+  std::int32_t n = 0;
+  while (nodes_[static_cast<std::size_t>(n)].tri < 0) {
+    const Node& node = nodes_[static_cast<std::size_t>(n)];
+    const double l = lower(nodes_[static_cast<std::size_t>(node.left)].box);
+    const double r = lower(nodes_[static_cast<std::size_t>(node.right)].box);
+    n = r < l ? node.right : node.left;
+  }
+  return nodes_[static_cast<std::size_t>(n)].tri;
 }
 
 template <class Keep>

@@ -23,6 +23,9 @@ struct BoneQueryWorld {
   };
   std::vector<Entry> bones;
   std::vector<std::int32_t> candidates;  ///< scratch of the queries
+  std::vector<double> lower_bounds;      ///< scratch: per candidate a lower bound of its distance
+  /// Exact core-triangle distance tests the queries did (a work counter for tests and benches).
+  std::int64_t exact_tests = 0;
 };
 
 /// Rebuilds the trees of bones whose surface changed (revision or size) since the last call.

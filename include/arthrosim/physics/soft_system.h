@@ -288,7 +288,7 @@ class SoftSystem final : public SoftStages {
   // the pattern changed).
   std::vector<std::uint8_t> scratch_has_;
   std::vector<std::array<std::int32_t, 2>> scratch_edges_, scratch_pairs_;
-  std::vector<std::int32_t> scratch_nodes_;
+  std::vector<std::int32_t> scratch_nodes_, scratch_row_at_, scratch_cols_;
   std::vector<double> scratch_mass_, scratch_alpha_mass_;
   std::vector<FactorSource> scratch_sources_;
   bool refactored_ = false;   // this step built or switched to a new factor
