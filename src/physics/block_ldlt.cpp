@@ -187,17 +187,69 @@ void BlockLdlt::Analyze(std::int32_t n, std::span<const std::array<std::int32_t,
 void BlockLdlt::Symbolic() {
   Impl& m = *impl_;
   const Eigen::Index dim = m.a.rows();
-  // The pattern of L from one factorisation of the identity on the same pattern (Eigen keeps
-  // structural entries whatever their values).
-  double* v = m.a.valuePtr();
+  // The pattern of L (in the ordering analyzePattern chose) by a symbolic up-looking
+  // elimination: row k of L holds every node met on the elimination-tree paths from the
+  // entries A(i, k), i < k, up to k; each column lists its rows ascending. This is the pattern
+  // a numeric SimplicialLDLT factorisation stores (its structural entries), without its
+  // arithmetic.
+  const auto& pidx = m.ldlt.permutationP().indices();
+  std::vector<std::int32_t> to(static_cast<std::size_t>(dim));
+  for (Eigen::Index i = 0; i < dim; ++i)
+    to[static_cast<std::size_t>(i)] = pidx.size() ? pidx[i] : static_cast<std::int32_t>(i);
+  // Upper pattern of P A P^T by columns: column max(p_r, p_c) holds row min(p_r, p_c).
+  std::vector<int> up_start(static_cast<std::size_t>(dim) + 1, 0);
   for (Eigen::Index c = 0; c < dim; ++c) {
-    for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p)
-      v[p] = m.a.innerIndexPtr()[p] == c ? 1.0 : 0.0;
+    for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p) {
+      const std::int32_t pr = to[static_cast<std::size_t>(m.a.innerIndexPtr()[p])];
+      const std::int32_t pc = to[static_cast<std::size_t>(c)];
+      if (pr != pc) ++up_start[static_cast<std::size_t>(std::max(pr, pc)) + 1];
+    }
   }
-  m.ldlt.factorize(m.a);
-  const auto& l = m.ldlt.matrixL().nestedExpression();
-  const int* lp = l.outerIndexPtr();
-  const int* li = l.innerIndexPtr();
+  for (Eigen::Index k = 0; k < dim; ++k)
+    up_start[static_cast<std::size_t>(k) + 1] += up_start[static_cast<std::size_t>(k)];
+  std::vector<int> up_rows(static_cast<std::size_t>(up_start[static_cast<std::size_t>(dim)]));
+  {
+    std::vector<int> fill(up_start.begin(), up_start.end() - 1);
+    for (Eigen::Index c = 0; c < dim; ++c) {
+      for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p) {
+        const std::int32_t pr = to[static_cast<std::size_t>(m.a.innerIndexPtr()[p])];
+        const std::int32_t pc = to[static_cast<std::size_t>(c)];
+        if (pr != pc)
+          up_rows[static_cast<std::size_t>(fill[static_cast<std::size_t>(std::max(pr, pc))]++)] =
+              std::min(pr, pc);
+      }
+    }
+  }
+  std::vector<int> parent(static_cast<std::size_t>(dim), -1), tag(static_cast<std::size_t>(dim));
+  std::vector<int> count(static_cast<std::size_t>(dim), 0);
+  auto walk = [&](auto&& visit) {
+    std::fill(parent.begin(), parent.end(), -1);
+    for (Eigen::Index k = 0; k < dim; ++k) {
+      tag[static_cast<std::size_t>(k)] = static_cast<int>(k);
+      for (int p = up_start[static_cast<std::size_t>(k)];
+           p < up_start[static_cast<std::size_t>(k) + 1]; ++p) {
+        for (int i = up_rows[static_cast<std::size_t>(p)]; tag[static_cast<std::size_t>(i)] != k;
+             i = parent[static_cast<std::size_t>(i)]) {
+          if (parent[static_cast<std::size_t>(i)] == -1)
+            parent[static_cast<std::size_t>(i)] = static_cast<int>(k);
+          visit(i, static_cast<int>(k));
+          tag[static_cast<std::size_t>(i)] = static_cast<int>(k);
+        }
+      }
+    }
+  };
+  walk([&](int i, int) { ++count[static_cast<std::size_t>(i)]; });
+  std::vector<int> l_start(static_cast<std::size_t>(dim) + 1, 0);
+  for (Eigen::Index k = 0; k < dim; ++k)
+    l_start[static_cast<std::size_t>(k) + 1] =
+        l_start[static_cast<std::size_t>(k)] + count[static_cast<std::size_t>(k)];
+  std::vector<int> l_rows(static_cast<std::size_t>(l_start[static_cast<std::size_t>(dim)]));
+  std::vector<int> l_fill(l_start.begin(), l_start.end() - 1);
+  walk([&](int i, int k) {
+    l_rows[static_cast<std::size_t>(l_fill[static_cast<std::size_t>(i)]++)] = k;
+  });
+  const int* lp = l_start.data();
+  const int* li = l_rows.data();
   m.nnz = dim > 0 ? lp[dim] : 0;
   // Fundamental supernodes: column j + 1 continues the run of j when L(j + 1, j) is the first
   // entry of column j and the patterns below agree (equal counts, nested by the elimination
