@@ -119,14 +119,21 @@ Criterion ReadCriterion(const Map& parent, const YAML::Node& n, const std::strin
     if (model) CheckName(m, "bone", c.bone, model->FindBone(c.bone) >= 0, "bone");
   } else if (outer.Has("distance")) {
     const Map m(parent.reader(), outer.Get("distance"), outer.Field("distance"),
-                {"region", "landmark", "max"});
+                {"region", "landmark", "to_region", "max"});
     c.kind = Criterion::Kind::kDistance;
     c.region = m.String("region");
-    c.landmark = m.String("landmark");
+    c.landmark = m.String("landmark", "");
+    c.to_region = m.String("to_region", "");
+    if (c.landmark.empty() == c.to_region.empty())
+      m.Fail(outer.Get("distance"), outer.Field("distance"),
+             "give exactly one of landmark, to_region");
     c.max_mm = m.NonNegative("max", 0);
     if (model) {
       CheckName(m, "region", c.region, model->FindRegion(c.region) >= 0, "region");
-      CheckName(m, "landmark", c.landmark, model->FindLandmark(c.landmark) >= 0, "landmark");
+      if (!c.landmark.empty())
+        CheckName(m, "landmark", c.landmark, model->FindLandmark(c.landmark) >= 0, "landmark");
+      else
+        CheckName(m, "to_region", c.to_region, model->FindRegion(c.to_region) >= 0, "region");
     }
   } else {
     const Map m(parent.reader(), outer.Get("in_view"), outer.Field("in_view"),

@@ -96,16 +96,24 @@ CriterionOutcome DistanceCriterion(const PlanStep& step, const Criterion& c, con
                                    ScoreReport* report) {
   CriterionOutcome out;
   const Region& region = run.model.regions[run.model.FindRegion(c.region)];
-  const Vec3 target = run.model.landmarks[run.model.FindLandmark(c.landmark)].position_mm;
-  const double d = (RegionCentroid(run, region) - target).norm();
+  const Vec3 centroid = RegionCentroid(run, region);
+  std::string to = c.landmark;
+  double d = 0;
+  if (c.to_region.empty()) {
+    d = (centroid - run.model.landmarks[run.model.FindLandmark(c.landmark)].position_mm).norm();
+  } else {
+    // The nearest point of the box (the centroid itself when inside): 0 on the region.
+    const Region& box = run.model.regions[run.model.FindRegion(c.to_region)];
+    d = (centroid - centroid.cwiseMax(box.box_min_mm).cwiseMin(box.box_max_mm)).norm();
+    to = "region " + c.to_region;
+  }
   AddMetric(report, "quality." + step.id + ".gap", "repair_quality",
-            fmt::format("{}: {} to {} at the end", step.title, c.region, c.landmark), "mm", d,
-            std::nullopt, c.max_mm);
+            fmt::format("{}: {} to {} at the end", step.title, c.region, to), "mm", d, std::nullopt,
+            c.max_mm);
   if (d <= c.max_mm) {
     out.time_s = run.time_s.back();
   } else {
-    out.why = fmt::format("{} ends {:.1f} mm from {} (allowed {:g} mm)", c.region, d, c.landmark,
-                          c.max_mm);
+    out.why = fmt::format("{} ends {:.1f} mm from {} (allowed {:g} mm)", c.region, d, to, c.max_mm);
   }
   return out;
 }

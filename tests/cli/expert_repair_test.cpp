@@ -563,7 +563,8 @@ TEST(ExpertRepair, KnotTiedAndSeatedOnItsTarget) {
 // The repair's residual gap (docs/operations.md, knot_seated gap_mm): the smallest distance from
 // the torn edge (region tendon_edge) to the footprint box, measured from the run file before
 // the passes, at the knot's seating and at the end; the knot_seated event reports the seating
-// frame's figure.
+// frame's figure. (From ~82 s the nearest node is one the debridement left without elements,
+// frozen where it was cut: docs/operations.md, "On the shoulder scene" (2).)
 TEST(ExpertRepair, TendonEdgeGapMeasured) {
   const Event anchor = FirstEvent("anchor");
   const Event seated = FirstEvent("knot_seated");
@@ -579,10 +580,29 @@ TEST(ExpertRepair, TendonEdgeGapMeasured) {
   EXPECT_NEAR(DetailValue(seated, "gap_mm"), at_seat, 0.001);
 }
 
-// Issue #16's target: the seated knot holds the edge within 2 mm of the footprint. Not met: the
-// knot ties the two limbs over their bites and the limbs run round the head from the anchor
-// with slack (edge-footprint gap ~12 mm at the end, see TendonEdgeGapMeasured).
-TEST(ExpertRepair, DISABLED_TendonEdgeOnTheFootprint) { EXPECT_LE(EdgeGapMm(Last()), 2.0); }
+// The plan's measure of the reduction (scenarios/plans/rotator_cuff_repair.yaml, step
+// tendon_reduced): the centroid of region tendon_edge to the nearest point of region
+// footprint's box (0 over the bone bed), mm.
+double EdgeCentroidToFootprintMm(const State& s) {
+  const Region& edge = RegionNamed("tendon_edge");
+  const Region& foot = RegionNamed("footprint");
+  const Points& x = s.soft_bodies[SoftIndex(edge.body)].x;
+  Vec3 c = Vec3::Zero();
+  for (const std::int32_t n : edge.nodes) c += x.col(n);
+  c /= static_cast<double>(edge.nodes.size());
+  return (c - c.cwiseMax(foot.box_min_mm).cwiseMin(foot.box_max_mm)).norm();
+}
+
+// Issue #16's target: the seated knot holds the edge within 2 mm of the footprint, measured as
+// the plan measures it. Not met (20.8 mm at the end; 10.1 mm at t = 0): the knot ties the two
+// limbs over their bites, the edge lateral of the bites springs back medially when the grasper
+// lets go, and the retriever and the cutter push it farther (docs/operations.md, "On the
+// shoulder scene" (2), with the trials that did not reduce it).
+TEST(ExpertRepair, DISABLED_TendonEdgeOnTheFootprint) {
+  std::printf("tendon edge centroid to the footprint bed: %.3f mm at t = 0, %.3f mm at the end\n",
+              EdgeCentroidToFootprintMm(TheRun().first), EdgeCentroidToFootprintMm(Last()));
+  EXPECT_LE(EdgeCentroidToFootprintMm(Last()), 2.0);
+}
 
 // 10. The tails cut above the seated knot: both limbs cut once with the cutter, near the knot,
 // after it was seated; the knot intact (its springs, its nodes alive, the limbs still knotted).

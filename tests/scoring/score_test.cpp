@@ -163,6 +163,61 @@ TEST(Score, EventsAStepListsUnderAlsoAreItsOwn) {
   EXPECT_EQ(Find(r, "plan.wrong_instrument_actions").value, 0.0);
 }
 
+// The reduction measured to the footprint's bone bed (distance: {to_region}): the centroid of
+// the edge to the nearest point of the bed's box. The clean tendon lies 1 mm medial of the bed
+// and passes; moved 10 mm medially (unreduced) it fails with the gap in the reason; lying on
+// the bed but 3.3 mm up (the edge's mid-thickness above the bone) it still passes, where the
+// landmark form, the same edge to a point on the bone, fails.
+ScoreReport ScoreReduction(const std::string& name, const Vec3& shift_mm, bool to_bed) {
+  SynthSpec spec;
+  spec.tendon_shift_mm = shift_mm;
+  const std::string path = testing::TestDir(name) + "/run.h5";
+  testing::WriteSynthRun(path, spec);
+  const Model model = testing::MakeSynthModel();
+  std::string text = testing::SynthPlanText();
+  const std::string old_criterion = "{region: edge, landmark: footprint, max: 2}";
+  EXPECT_NE(text.find(old_criterion), std::string::npos);
+  if (to_bed)
+    text.replace(text.find(old_criterion), old_criterion.size(),
+                 "{region: edge, to_region: bed, max: 2}");
+  const Plan plan = LoadPlanFromText(text, "synth.yaml", &model);
+  return Evaluate(plan, ReadRunData(path, model), {});
+}
+
+TEST(Score, TendonEdgeMeasuredToTheFootprintBed) {
+  const ScoreReport clean = ScoreReduction("bed_clean", Vec3::Zero(), true);
+  EXPECT_TRUE(Step(clean, "reduce").passed) << Step(clean, "reduce").reason;
+  EXPECT_NEAR(Find(clean, "quality.reduce.gap").value, 1.0, 1e-12);
+
+  const ScoreReport medial = ScoreReduction("bed_medial", Vec3(-10, 0, 0), true);
+  EXPECT_FALSE(Step(medial, "reduce").passed);
+  ExpectFailingMetric(medial, "quality.reduce.gap", 11.0);
+  EXPECT_NE(Step(medial, "reduce").reason.find("edge ends 11.0 mm from region bed"),
+            std::string::npos)
+      << Step(medial, "reduce").reason;
+
+  const ScoreReport up = ScoreReduction("bed_up", Vec3(0, 0, 3.3), true);
+  EXPECT_TRUE(Step(up, "reduce").passed) << Step(up, "reduce").reason;
+  EXPECT_NEAR(Find(up, "quality.reduce.gap").value, 1.0, 1e-12);
+  const ScoreReport up_landmark = ScoreReduction("bed_up_landmark", Vec3(0, 0, 3.3), false);
+  EXPECT_FALSE(Step(up_landmark, "reduce").passed);
+}
+
+TEST(Score, DistanceCriterionNeedsOneTarget) {
+  const Model model = testing::MakeSynthModel();
+  std::string text = testing::SynthPlanText();
+  const std::string old_criterion = "{region: edge, landmark: footprint, max: 2}";
+  ASSERT_NE(text.find(old_criterion), std::string::npos);
+  std::string both = text;
+  both.replace(both.find(old_criterion), old_criterion.size(),
+               "{region: edge, landmark: footprint, to_region: bed, max: 2}");
+  EXPECT_THROW(LoadPlanFromText(both, "synth.yaml", &model), std::exception);
+  std::string unknown = text;
+  unknown.replace(unknown.find(old_criterion), old_criterion.size(),
+                  "{region: edge, to_region: nowhere, max: 2}");
+  EXPECT_THROW(LoadPlanFromText(unknown, "synth.yaml", &model), std::exception);
+}
+
 TEST(Score, ForceOnAProtectedStructureIsCritical) {
   SynthSpec spec;
   spec.muscle_touch_force_n = 5;

@@ -80,6 +80,9 @@ Model MakeSynthModel() {
   m.regions.push_back(belly);
   Region edge{"edge", "tendon", {0, 1, 2, 3}, Vec3(-21, -1, 1), Vec3(-15, 5, 7)};
   m.regions.push_back(edge);
+  // The footprint's bone bed: the tendon's centroid (-19, 1, 3) lies 1 mm medial of it.
+  Region bed{"bed", "humerus", {}, Vec3(-18, -5, -1), Vec3(-8, 5, 8)};
+  m.regions.push_back(bed);
   return m;
 }
 
@@ -138,6 +141,7 @@ void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
     s.tool_contacts.clear();
     s.camera.pose = cam;
     s.camera.head_roll_rad = spec.head_roll_rad;
+    s.soft_bodies[0].x = model.soft_bodies[0].rest_mesh.nodes.colwise() + spec.tendon_shift_mm;
     for (ToolState& t : s.tools) {
       t.instrument = -1;
       t.force_n = Vec3::Zero();

@@ -34,6 +34,7 @@ struct SynthSpec {
   bool burr_zigzag = false;         ///< the burr path zig-zags (3x longer)
   double position_noise_mm = 0;     ///< added to the awl pose x at frame `noise_frame`
   int noise_frame = -1;
+  Vec3 tendon_shift_mm = Vec3::Zero();  ///< the tendon's nodes moved by this in every frame
 };
 
 /// The synthetic Model (scenario name "scoring-synthetic").

@@ -27,7 +27,8 @@ struct Range {
 /// - kBoneRemoved: the bone's removed volume (`/bones/<bone>/removed_volume`) has grown by at
 ///   least `min_volume_mm3` since the step started.
 /// - kDistance: at the end of the run the centroid of `region`'s nodes lies within `max_mm` of
-///   `landmark` (tendon edge onto the footprint).
+///   `landmark`, or of the box of region `to_region` (0 inside it): the tendon edge onto the
+///   footprint, measured as the edge's distance to the footprint's bone bed.
 /// - kInView: the camera saw `landmark` (inside the scope's field of view) for `min_time_s`.
 struct Criterion {
   enum class Kind : std::uint8_t { kEvent, kBoneRemoved, kDistance, kInView };
@@ -41,9 +42,10 @@ struct Criterion {
   std::map<std::string, Range> detail;  ///< kEvent: detail key -> allowed range
   std::string bone;                     ///< kBoneRemoved
   double min_volume_mm3 = 0;            ///< kBoneRemoved
-  double max_mm = 0;                    ///< kDistance
-  double min_time_s = 0;                ///< kInView
-  int line = 0;                         ///< line in the plan file (for messages)
+  std::string to_region;  ///< kDistance: measured to this region's box instead of `landmark`
+  double max_mm = 0;      ///< kDistance
+  double min_time_s = 0;  ///< kInView
+  int line = 0;           ///< line in the plan file (for messages)
 };
 
 /// Instrument name of the arthroscope in a step's instrument list (camera-only steps).
