@@ -11,6 +11,7 @@
 #include <numbers>
 #include <string>
 
+#include "arthrosim/core/soft_nodes.h"
 #include "arthrosim/instruments/knot_identify.h"
 #include "arthrosim/instruments/knot_pusher.h"
 #include "arthrosim/physics/constraints.h"
@@ -461,9 +462,12 @@ double EdgeToFootprintMm(const Model& model, const State& state) {
   const Region& f = model.regions[static_cast<std::size_t>(foot)];
   const int body = model.FindSoftBody(e.body);
   if (body < 0 || e.nodes.empty()) return -1;
+  const SoftBodyState& tissue = state.soft_bodies[static_cast<std::size_t>(body)];
+  const std::vector<std::uint8_t> in_tissue = NodesInAliveTets(tissue);  // skip cut-off debris
   double best = -1;
   for (const std::int32_t n : e.nodes) {
-    const Vec3 p = state.soft_bodies[static_cast<std::size_t>(body)].x.col(n);
+    if (!in_tissue[static_cast<std::size_t>(n)]) continue;
+    const Vec3 p = tissue.x.col(n);
     const Vec3 q = p.cwiseMax(f.box_min_mm).cwiseMin(f.box_max_mm);
     const double d = (p - q).norm();
     if (best < 0 || d < best) best = d;

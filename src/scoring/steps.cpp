@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "arthrosim/core/soft_nodes.h"
 #include "progress.h"
 #include "score_internal.h"
 
@@ -75,15 +76,19 @@ CriterionOutcome BoneCriterion(const PlanStep& step, const Criterion& c, const R
   return out;
 }
 
-// Centroid (mm) of a region's nodes in the last frame; NaN if the region has none.
+// Centroid (mm) of a region's nodes in the last frame that still belong to the tissue (nodes
+// cutting or shaving left without elements stay where they were cut: NodesInAliveTets); NaN if
+// the region has none.
 Vec3 RegionCentroid(const RunData& run, const Region& region) {
   const int b = run.model.FindSoftBody(region.body);
   Vec3 sum = Vec3::Zero();
   int n = 0;
   if (b >= 0 && b < static_cast<int>(run.last.soft_bodies.size())) {
-    const Points& x = run.last.soft_bodies[b].x;
+    const SoftBodyState& body = run.last.soft_bodies[static_cast<std::size_t>(b)];
+    const Points& x = body.x;
+    const std::vector<std::uint8_t> in_tissue = NodesInAliveTets(body);
     for (std::int32_t i : region.nodes) {
-      if (i < x.cols()) {
+      if (i < x.cols() && in_tissue[static_cast<std::size_t>(i)]) {
         sum += x.col(i);
         ++n;
       }

@@ -203,6 +203,27 @@ TEST(Score, TendonEdgeMeasuredToTheFootprintBed) {
   EXPECT_FALSE(Step(up_landmark, "reduce").passed);
 }
 
+// A node that cutting or shaving left without elements stays where it was cut: it is not where
+// the edge is, and the centroid skips it (the edge's other three nodes, 0.33 mm nearer the bed
+// than the four together).
+TEST(Score, TendonEdgeCentroidSkipsDebrisNodes) {
+  SynthSpec spec;
+  spec.tendon_debris_shift_mm = Vec3(-40, 0, 0);  // node 0 left 40 mm medial
+  const std::string path = testing::TestDir("debris") + "/run.h5";
+  testing::WriteSynthRun(path, spec);
+  const Model model = testing::MakeSynthModel();
+  std::string text = testing::SynthPlanText();
+  const std::string old_criterion = "{region: edge, landmark: footprint, max: 2}";
+  ASSERT_NE(text.find(old_criterion), std::string::npos);
+  text.replace(text.find(old_criterion), old_criterion.size(),
+               "{region: edge, to_region: bed, max: 2}");
+  const ScoreReport r =
+      Evaluate(LoadPlanFromText(text, "synth.yaml", &model), ReadRunData(path, model), {});
+  // nodes 1, 2, 3 of the tet at (-20, 0, 2): centroid x = -20 + 4/3, 1 - 4/3 mm medial of the bed
+  EXPECT_NEAR(Find(r, "quality.reduce.gap").value, 2.0 / 3.0, 1e-12);
+  EXPECT_TRUE(Step(r, "reduce").passed) << Step(r, "reduce").reason;
+}
+
 TEST(Score, DistanceCriterionNeedsOneTarget) {
   const Model model = testing::MakeSynthModel();
   std::string text = testing::SynthPlanText();

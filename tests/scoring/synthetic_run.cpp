@@ -38,6 +38,22 @@ Points TetAt(const Vec3& o) {
 
 double MinJerk(double s) { return s * s * s * (10 - 15 * s + 6 * s * s); }
 
+// The tendon's tet cut away, a second one (nodes 1, 2, 3 and a new node 4 on the far side of
+// their face) holding the tissue: node 0 belongs to no alive element (debris), moved by `shift`.
+void LeaveDebrisNode(const Vec3& shift, State* s) {
+  SoftBodyState& b = s->soft_bodies[0];
+  Points x(3, 5);
+  x.leftCols(4) = b.x;
+  x.col(4) = (b.x.col(1) + b.x.col(2) + b.x.col(3)) / 3.0 + Vec3(2, 2, 2);
+  x.col(0) += shift;
+  b.x = x;
+  b.x_rest = x;
+  b.v = Points::Zero(3, 5);
+  b.dv_warm = Points::Zero(3, 5);
+  b.tets = {{0, 1, 2, 3}, {1, 2, 3, 4}};
+  b.tet_alive = {0, 1};
+}
+
 }  // namespace
 
 Model MakeSynthModel() {
@@ -142,6 +158,7 @@ void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
     s.camera.pose = cam;
     s.camera.head_roll_rad = spec.head_roll_rad;
     s.soft_bodies[0].x = model.soft_bodies[0].rest_mesh.nodes.colwise() + spec.tendon_shift_mm;
+    if (!spec.tendon_debris_shift_mm.isZero()) LeaveDebrisNode(spec.tendon_debris_shift_mm, &s);
     for (ToolState& t : s.tools) {
       t.instrument = -1;
       t.force_n = Vec3::Zero();

@@ -35,6 +35,9 @@ struct SynthSpec {
   double position_noise_mm = 0;     ///< added to the awl pose x at frame `noise_frame`
   int noise_frame = -1;
   Vec3 tendon_shift_mm = Vec3::Zero();  ///< the tendon's nodes moved by this in every frame
+  /// Nonzero: the tendon's tet is cut away and a second tet (nodes 1, 2, 3 and a new node 4)
+  /// holds the tissue, so node 0 is debris, moved by this from where it was.
+  Vec3 tendon_debris_shift_mm = Vec3::Zero();
 };
 
 /// The synthetic Model (scenario name "scoring-synthetic").
