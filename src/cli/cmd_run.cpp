@@ -175,6 +175,9 @@ int Run(const RunArgs& a) {
   // Wall time is printed only (the real-time factor), never written into results.
   const auto wall_start = std::chrono::steady_clock::now();
   const double start_time_s = state.time_s;  // a continued run starts at its checkpoint's time
+  // Thread solves that stopped before converging (max_newton_iterations or the line-search
+  // floor), counted from each step's last thread solve; printed only (docs/operations.md).
+  std::int64_t thread_solves = 0, thread_unconverged = 0;
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
@@ -191,6 +194,8 @@ int Run(const RunArgs& a) {
                  writer.frames(), e.step() - 1);
       return kExitSimulationFailed;
     }
+    thread_solves += ws.timings.thread.solves;
+    thread_unconverged += ws.timings.thread.unconverged_solves;
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());
@@ -227,6 +232,9 @@ int Run(const RunArgs& a) {
     // the step loop only (stepping, writing, live video); real-time factor = simulated / wall
     fmt::print(stderr, "wall time {:.2f} s, real-time factor {:.2f}x\n", wall_s,
                wall_s > 0 ? (state.time_s - start_time_s) / wall_s : 0.0);
+    fmt::print(stderr,
+               "thread solves unconverged: {} of {} (thread_solver.max_newton_iterations {})\n",
+               thread_unconverged, thread_solves, model.thread_solver.max_newton_iterations);
   }
   return kExitOk;
 }

@@ -98,6 +98,23 @@ TEST_F(CliTest, RunIsByteIdenticalForOneAndTwoThreads) {
   EXPECT_NE(std::system(cmp2.c_str()), 0);
 }
 
+// The run's summary counts the thread solves that stopped unconverged (one or more solves per
+// step on a scene with a thread: the small scene has one).
+TEST_F(CliTest, RunReportsUnconvergedThreadSolves) {
+  const Result r = Exec("run " + kSmall + " --steps 15 --out " + P("t.h5"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string key = "thread solves unconverged: ";
+  const std::size_t at = r.output.find(key);
+  ASSERT_NE(at, std::string::npos) << r.output;
+  long long unconverged = -1, solves = -1;
+  ASSERT_EQ(std::sscanf(r.output.c_str() + at + key.size(), "%lld of %lld", &unconverged, &solves),
+            2)
+      << r.output;
+  EXPECT_GE(solves, 15) << r.output;
+  EXPECT_GE(unconverged, 0);
+  EXPECT_LE(unconverged, solves);
+}
+
 TEST_F(CliTest, InfoSummarisesARun) {
   ASSERT_EQ(Exec("run " + kSmall + " --steps 5 --quiet --out " + P("r.h5")).exit_code, 0);
   const Result r = Exec("info " + P("r.h5"));

@@ -513,6 +513,25 @@ TEST(ExpertRepair, LimbsTakenWithTheRetriever) {
   for (const std::string& l : limbs) EXPECT_TRUE(l == "suture_a" || l == "suture_b") << l;
 }
 
+// A limb the retriever holds follows it: the grip is let go when the jaw opens (or the
+// instrument leaves), never because the held node stayed > dist_limit behind the jaw while the
+// retriever drew back. Not met: at 84.6 s suture_a is let go by distance (stretch 2.06 mm)
+// while the limb beside the held node carries ~1-3 N; the thread solver's Newton solve stops at
+// max_newton_iterations in nearly every step of this part of the run with line-search steps of
+// 1e-4 (docs/operations.md, "On the shoulder scene" (4)), so the threads hardly move.
+TEST(ExpertRepair, DISABLED_TheRetrievedLimbFollowsTheRetriever) {
+  const std::vector<Event> releases = EventsIn("release", "", 0, 1e9);
+  int by_retriever = 0;
+  for (const Event& e : releases) {
+    if (e.tool != "retriever") continue;
+    ++by_retriever;
+    std::printf("retriever release at %.2f s on %s: %s\n", e.time_s, e.body.c_str(),
+                e.detail.c_str());
+    EXPECT_NE(DetailText(e, "reason"), "distance") << e.detail;
+  }
+  EXPECT_GE(by_retriever, 1);
+}
+
 // 9. The knot: thrown by the knot pusher over both limbs and identified as a real knot
 // (IdentifyKnot), then seated on its target (the target_node-th node from each limb's exit)
 // within 1 mm, secure under the pull test; checked again from the seating frame's thread
