@@ -168,9 +168,7 @@ TEST(Score, EventsAStepListsUnderAlsoAreItsOwn) {
 // and passes; moved 10 mm medially (unreduced) it fails with the gap in the reason; lying on
 // the bed but 3.3 mm up (the edge's mid-thickness above the bone) it still passes, where the
 // landmark form, the same edge to a point on the bone, fails.
-ScoreReport ScoreReduction(const std::string& name, const Vec3& shift_mm, bool to_bed) {
-  SynthSpec spec;
-  spec.tendon_shift_mm = shift_mm;
+ScoreReport ScoreReduction(const std::string& name, const SynthSpec& spec, bool to_bed) {
   const std::string path = testing::TestDir(name) + "/run.h5";
   testing::WriteSynthRun(path, spec);
   const Model model = testing::MakeSynthModel();
@@ -182,6 +180,12 @@ ScoreReport ScoreReduction(const std::string& name, const Vec3& shift_mm, bool t
                  "{region: edge, to_region: bed, max: 2}");
   const Plan plan = LoadPlanFromText(text, "synth.yaml", &model);
   return Evaluate(plan, ReadRunData(path, model), {});
+}
+
+ScoreReport ScoreReduction(const std::string& name, const Vec3& shift_mm, bool to_bed) {
+  SynthSpec spec;
+  spec.tendon_shift_mm = shift_mm;
+  return ScoreReduction(name, spec, to_bed);
 }
 
 TEST(Score, TendonEdgeMeasuredToTheFootprintBed) {
@@ -209,16 +213,7 @@ TEST(Score, TendonEdgeMeasuredToTheFootprintBed) {
 TEST(Score, TendonEdgeCentroidSkipsDebrisNodes) {
   SynthSpec spec;
   spec.tendon_debris_shift_mm = Vec3(-40, 0, 0);  // node 0 left 40 mm medial
-  const std::string path = testing::TestDir("debris") + "/run.h5";
-  testing::WriteSynthRun(path, spec);
-  const Model model = testing::MakeSynthModel();
-  std::string text = testing::SynthPlanText();
-  const std::string old_criterion = "{region: edge, landmark: footprint, max: 2}";
-  ASSERT_NE(text.find(old_criterion), std::string::npos);
-  text.replace(text.find(old_criterion), old_criterion.size(),
-               "{region: edge, to_region: bed, max: 2}");
-  const ScoreReport r =
-      Evaluate(LoadPlanFromText(text, "synth.yaml", &model), ReadRunData(path, model), {});
+  const ScoreReport r = ScoreReduction("debris", spec, true);
   // nodes 1, 2, 3 of the tet at (-20, 0, 2): centroid x = -20 + 4/3, 1 - 4/3 mm medial of the bed
   EXPECT_NEAR(Find(r, "quality.reduce.gap").value, 2.0 / 3.0, 1e-12);
   EXPECT_TRUE(Step(r, "reduce").passed) << Step(r, "reduce").reason;
