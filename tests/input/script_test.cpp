@@ -159,6 +159,30 @@ slot0:
   EXPECT_TRUE(At(idle, 0.0).camera.pose == m.camera.initial_pose);
 }
 
+// The first camera move starts from where the scope looked at its initial pose: its view turns
+// from there toward the new look point, never round through the way behind it.
+TEST(Script, TheFirstCameraMoveStartsFromTheInitialView) {
+  const Model m = MakeTestModel();
+  const std::string y = R"(name: first
+camera:
+  - move: {look_at: footprint_center, duration: 1.0}
+)";
+  ScriptSource s(y, "t.yaml", m, Opt());
+  const Vec3 eye = m.camera.initial_pose.position_mm;
+  const Vec3 initial_view = m.camera.initial_pose.orientation * Vec3::UnitZ();
+  const Vec3 to_target =
+      (m.landmarks[m.FindLandmark("footprint_center")].position_mm - eye).normalized();
+  double last = -2;
+  for (double t : {0.0, 0.02, 0.1, 0.3, 0.5, 0.7, 1.0}) {
+    const InputFrame f = At(s, t);
+    const Vec3 view = f.camera.pose.orientation * Vec3::UnitZ();
+    EXPECT_GT(view.dot(initial_view), initial_view.dot(to_target) - 1e-9) << t;  // in between
+    EXPECT_GE(view.dot(to_target), last - 1e-12) << t;  // turns toward the target
+    last = view.dot(to_target);
+  }
+  EXPECT_NEAR(last, 1.0, 1e-12);
+}
+
 TEST(ScriptValidation, ErrorsNameFileLineAndField) {
   struct Case {
     std::string yaml, expect;
