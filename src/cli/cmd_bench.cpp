@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <numeric>
 #include <vector>
 
@@ -299,17 +300,18 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     SetThreadCount(a->threads);
     const Model model = io::LoadScenario(a->scenario);
     fmt::print("bench_threads={}\n", a->threads);
-    std::FILE* trace = nullptr;
+    // closed however the timing ends (an input error mid-run included)
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> trace(nullptr, &std::fclose);
     if (!a->trace.empty()) {
-      trace = std::fopen(a->trace.c_str(), "w");
-      if (trace == nullptr) throw InputError(a->trace, 0, "--trace", "cannot write this file");
-      fmt::print(trace,
+      trace.reset(std::fopen(a->trace.c_str(), "w"));
+      if (!trace) throw InputError(a->trace, 0, "--trace", "cannot write this file");
+      fmt::print(trace.get(),
                  "step,total_ms,kinematics_ms,collision_ms,rotations_ms,assembly_ms,factor_ms,"
                  "solve_ms,instruments_ms,cg_iterations,contact_resolves,active_terms,"
                  "refactored,factor_requested\n");
     }
-    PrintScenario(model, TimeScenario(model, a->trajectory, a->steps, -1, trace), a->steps);
-    if (trace != nullptr) std::fclose(trace);
+    PrintScenario(model, TimeScenario(model, a->trajectory, a->steps, -1, trace.get()), a->steps);
+    trace.reset();
     PrintAbusive(model, a->abusive);
     PrintOperations(model, a->ops_dir);
     SetThreadCount(1);  // its figures are process CPU time

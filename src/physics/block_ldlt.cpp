@@ -48,6 +48,80 @@ constexpr std::int64_t kGemmMinWork = 2048;
 // triangular solve for the rows below), narrower ones column by column.
 constexpr std::int64_t kBlockedMinWidth = 24;
 
+// A sparse pattern by columns: column c's rows are rows[start[c] .. start[c + 1]).
+struct ColumnPattern {
+  std::vector<int> start, rows;
+};
+
+// Where the permutation P takes each index (the identity when P is empty).
+template <class Indices>
+std::vector<std::int32_t> PermutationOf(const Indices& pidx, Eigen::Index dim) {
+  std::vector<std::int32_t> to(static_cast<std::size_t>(dim));
+  for (Eigen::Index i = 0; i < dim; ++i)
+    to[static_cast<std::size_t>(i)] = pidx.size() ? pidx[i] : static_cast<std::int32_t>(i);
+  return to;
+}
+
+// The strictly upper pattern of P A P^T by columns (column max(p_r, p_c) holds row
+// min(p_r, p_c)), from the stored entries of `a` and the permutation `to`.
+ColumnPattern UpperPattern(const Eigen::SparseMatrix<double>& a,
+                           const std::vector<std::int32_t>& to) {
+  const Eigen::Index dim = a.rows();
+  ColumnPattern up;
+  up.start.assign(static_cast<std::size_t>(dim) + 1, 0);
+  auto each_entry = [&](auto&& visit) {
+    for (Eigen::Index c = 0; c < dim; ++c) {
+      for (int p = a.outerIndexPtr()[c]; p < a.outerIndexPtr()[c + 1]; ++p) {
+        const std::int32_t pr = to[static_cast<std::size_t>(a.innerIndexPtr()[p])];
+        const std::int32_t pc = to[static_cast<std::size_t>(c)];
+        if (pr != pc) visit(std::max(pr, pc), std::min(pr, pc));
+      }
+    }
+  };
+  each_entry([&](int col, int) { ++up.start[static_cast<std::size_t>(col) + 1]; });
+  for (Eigen::Index k = 0; k < dim; ++k)
+    up.start[static_cast<std::size_t>(k) + 1] += up.start[static_cast<std::size_t>(k)];
+  up.rows.resize(static_cast<std::size_t>(up.start[static_cast<std::size_t>(dim)]));
+  std::vector<int> fill(up.start.begin(), up.start.end() - 1);
+  each_entry([&](int col, int row) {
+    up.rows[static_cast<std::size_t>(fill[static_cast<std::size_t>(col)]++)] = row;
+  });
+  return up;
+}
+
+// The pattern of L for the upper pattern `up` by a symbolic up-looking elimination: row k of L
+// holds every node met on the elimination-tree paths from the entries (i, k), i < k, up to k;
+// each column lists its rows ascending (the order a numeric factorisation appends them).
+ColumnPattern PatternOfL(const ColumnPattern& up) {
+  const std::size_t dim = up.start.size() - 1;
+  std::vector<int> parent(dim, -1), tag(dim);
+  auto walk = [&](auto&& visit) {
+    std::fill(parent.begin(), parent.end(), -1);
+    for (std::size_t k = 0; k < dim; ++k) {
+      const int kk = static_cast<int>(k);
+      tag[k] = kk;
+      for (int p = up.start[k]; p < up.start[k + 1]; ++p) {
+        for (int i = up.rows[static_cast<std::size_t>(p)]; tag[static_cast<std::size_t>(i)] != kk;
+             i = parent[static_cast<std::size_t>(i)]) {
+          if (parent[static_cast<std::size_t>(i)] == -1) parent[static_cast<std::size_t>(i)] = kk;
+          visit(i, kk);
+          tag[static_cast<std::size_t>(i)] = kk;
+        }
+      }
+    }
+  };
+  ColumnPattern l;
+  l.start.assign(dim + 1, 0);
+  walk([&](int i, int) { ++l.start[static_cast<std::size_t>(i) + 1]; });
+  for (std::size_t k = 0; k < dim; ++k) l.start[k + 1] += l.start[k];
+  l.rows.resize(static_cast<std::size_t>(l.start[dim]));
+  std::vector<int> fill(l.start.begin(), l.start.end() - 1);
+  walk([&](int i, int k) {
+    l.rows[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = k;
+  });
+  return l;
+}
+
 // LDL^T of a supernode panel in place (column-major, ld rows: the w x w triangle, then the rows
 // below), right-looking column by column; D into d. False when not positive definite.
 bool DenseLdlt(double* ps, std::int64_t w, std::int64_t ld, double* d) {
@@ -187,69 +261,12 @@ void BlockLdlt::Analyze(std::int32_t n, std::span<const std::array<std::int32_t,
 void BlockLdlt::Symbolic() {
   Impl& m = *impl_;
   const Eigen::Index dim = m.a.rows();
-  // The pattern of L (in the ordering analyzePattern chose) by a symbolic up-looking
-  // elimination: row k of L holds every node met on the elimination-tree paths from the
-  // entries A(i, k), i < k, up to k; each column lists its rows ascending. This is the pattern
-  // a numeric SimplicialLDLT factorisation stores (its structural entries), without its
-  // arithmetic.
-  const auto& pidx = m.ldlt.permutationP().indices();
-  std::vector<std::int32_t> to(static_cast<std::size_t>(dim));
-  for (Eigen::Index i = 0; i < dim; ++i)
-    to[static_cast<std::size_t>(i)] = pidx.size() ? pidx[i] : static_cast<std::int32_t>(i);
-  // Upper pattern of P A P^T by columns: column max(p_r, p_c) holds row min(p_r, p_c).
-  std::vector<int> up_start(static_cast<std::size_t>(dim) + 1, 0);
-  for (Eigen::Index c = 0; c < dim; ++c) {
-    for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p) {
-      const std::int32_t pr = to[static_cast<std::size_t>(m.a.innerIndexPtr()[p])];
-      const std::int32_t pc = to[static_cast<std::size_t>(c)];
-      if (pr != pc) ++up_start[static_cast<std::size_t>(std::max(pr, pc)) + 1];
-    }
-  }
-  for (Eigen::Index k = 0; k < dim; ++k)
-    up_start[static_cast<std::size_t>(k) + 1] += up_start[static_cast<std::size_t>(k)];
-  std::vector<int> up_rows(static_cast<std::size_t>(up_start[static_cast<std::size_t>(dim)]));
-  {
-    std::vector<int> fill(up_start.begin(), up_start.end() - 1);
-    for (Eigen::Index c = 0; c < dim; ++c) {
-      for (int p = m.a.outerIndexPtr()[c]; p < m.a.outerIndexPtr()[c + 1]; ++p) {
-        const std::int32_t pr = to[static_cast<std::size_t>(m.a.innerIndexPtr()[p])];
-        const std::int32_t pc = to[static_cast<std::size_t>(c)];
-        if (pr != pc)
-          up_rows[static_cast<std::size_t>(fill[static_cast<std::size_t>(std::max(pr, pc))]++)] =
-              std::min(pr, pc);
-      }
-    }
-  }
-  std::vector<int> parent(static_cast<std::size_t>(dim), -1), tag(static_cast<std::size_t>(dim));
-  std::vector<int> count(static_cast<std::size_t>(dim), 0);
-  auto walk = [&](auto&& visit) {
-    std::fill(parent.begin(), parent.end(), -1);
-    for (Eigen::Index k = 0; k < dim; ++k) {
-      tag[static_cast<std::size_t>(k)] = static_cast<int>(k);
-      for (int p = up_start[static_cast<std::size_t>(k)];
-           p < up_start[static_cast<std::size_t>(k) + 1]; ++p) {
-        for (int i = up_rows[static_cast<std::size_t>(p)]; tag[static_cast<std::size_t>(i)] != k;
-             i = parent[static_cast<std::size_t>(i)]) {
-          if (parent[static_cast<std::size_t>(i)] == -1)
-            parent[static_cast<std::size_t>(i)] = static_cast<int>(k);
-          visit(i, static_cast<int>(k));
-          tag[static_cast<std::size_t>(i)] = static_cast<int>(k);
-        }
-      }
-    }
-  };
-  walk([&](int i, int) { ++count[static_cast<std::size_t>(i)]; });
-  std::vector<int> l_start(static_cast<std::size_t>(dim) + 1, 0);
-  for (Eigen::Index k = 0; k < dim; ++k)
-    l_start[static_cast<std::size_t>(k) + 1] =
-        l_start[static_cast<std::size_t>(k)] + count[static_cast<std::size_t>(k)];
-  std::vector<int> l_rows(static_cast<std::size_t>(l_start[static_cast<std::size_t>(dim)]));
-  std::vector<int> l_fill(l_start.begin(), l_start.end() - 1);
-  walk([&](int i, int k) {
-    l_rows[static_cast<std::size_t>(l_fill[static_cast<std::size_t>(i)]++)] = k;
-  });
-  const int* lp = l_start.data();
-  const int* li = l_rows.data();
+  // The pattern of L (in the ordering analyzePattern chose): what a numeric SimplicialLDLT
+  // factorisation stores (its structural entries), without its arithmetic.
+  const std::vector<std::int32_t> to = PermutationOf(m.ldlt.permutationP().indices(), dim);
+  const ColumnPattern l = PatternOfL(UpperPattern(m.a, to));
+  const int* lp = l.start.data();
+  const int* li = l.rows.data();
   m.nnz = dim > 0 ? lp[dim] : 0;
   // Fundamental supernodes: column j + 1 continues the run of j when L(j + 1, j) is the first
   // entry of column j and the patterns below agree (equal counts, nested by the elimination
