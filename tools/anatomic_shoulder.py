@@ -299,11 +299,7 @@ def build_meshes():
 
 def biceps_centreline_at_x(x):
     """First crossing of the biceps centreline with the plane x (after the tubercle)."""
-    gmsh.model.add("biceps_curve")
-    pts = [gmsh.model.occ.addPoint(*p) for p in BICEPS_PATH]
-    c = gmsh.model.occ.addSpline(pts)
-    gmsh.model.occ.synchronize()
-    lo, hi = gmsh.model.getParametrizationBounds(1, c)
+    c, lo, hi = base.spline_curve(BICEPS_PATH)
     ts = np.linspace(lo[0], hi[0], 2001)
     xs = np.array(gmsh.model.getValue(1, c, list(ts))).reshape(-1, 3)
     ys = xs[:, 1]

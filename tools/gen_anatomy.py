@@ -329,13 +329,20 @@ def tendon_mid_point(y, s_medial):
     return np.array([rc * math.sin(phi), y, rc * math.cos(phi)])
 
 
-def biceps_centreline_at_x(x):
-    """Point where the biceps centreline (the same gmsh spline as the mesh) first crosses x."""
-    gmsh.model.add("biceps_curve")
-    pts = [gmsh.model.occ.addPoint(*p) for p in BICEPS_PATH]
+def spline_curve(path, name="biceps_curve"):
+    """A gmsh interpolating spline through `path` in a new model `name` (the curve the biceps
+    mesh follows): (curve tag, lower and upper parameter bounds)."""
+    gmsh.model.add(name)
+    pts = [gmsh.model.occ.addPoint(*p) for p in path]
     c = gmsh.model.occ.addSpline(pts)
     gmsh.model.occ.synchronize()
     lo, hi = gmsh.model.getParametrizationBounds(1, c)
+    return c, lo, hi
+
+
+def biceps_centreline_at_x(x):
+    """Point where the biceps centreline (the same gmsh spline as the mesh) first crosses x."""
+    c, lo, hi = spline_curve(BICEPS_PATH)
     a, b = lo[0], hi[0]
     for _ in range(60):  # bisection: x only rises from -29 to 6.5 and never comes back below
         m = 0.5 * (a + b)
