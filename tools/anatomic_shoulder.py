@@ -305,14 +305,7 @@ def biceps_centreline_at_x(x):
     ys = xs[:, 1]
     # past the tubercle end plane, first sample whose x reaches `x` while x is rising
     i = int(np.argmax((ys > BICEPS_Y0) & (xs[:, 0] >= x) & (np.arange(len(ts)) > 0)))
-    a, b = ts[i - 1], ts[i]
-    for _ in range(60):
-        m = 0.5 * (a + b)
-        if gmsh.model.getValue(1, c, [m])[0] < x:
-            a = m
-        else:
-            b = m
-    p = np.array(gmsh.model.getValue(1, c, [0.5 * (a + b)]))
+    p = base.crossing_x(c, ts[i - 1], ts[i], x)
     samples = xs
     gmsh.model.remove()
     return p, samples

@@ -340,17 +340,22 @@ def spline_curve(path, name="biceps_curve"):
     return c, lo, hi
 
 
-def biceps_centreline_at_x(x):
-    """Point where the biceps centreline (the same gmsh spline as the mesh) first crosses x."""
-    c, lo, hi = spline_curve(BICEPS_PATH)
-    a, b = lo[0], hi[0]
-    for _ in range(60):  # bisection: x only rises from -29 to 6.5 and never comes back below
+def crossing_x(c, a, b, x):
+    """The point of curve c where its x reaches `x`, by 60 bisections of the parameter interval
+    [a, b] (x below `x` at a, not below at b)."""
+    for _ in range(60):
         m = 0.5 * (a + b)
         if gmsh.model.getValue(1, c, [m])[0] < x:
             a = m
         else:
             b = m
-    p = np.array(gmsh.model.getValue(1, c, [0.5 * (a + b)]))
+    return np.array(gmsh.model.getValue(1, c, [0.5 * (a + b)]))
+
+
+def biceps_centreline_at_x(x):
+    """Point where the biceps centreline (the same gmsh spline as the mesh) first crosses x."""
+    c, lo, hi = spline_curve(BICEPS_PATH)
+    p = crossing_x(c, lo[0], hi[0], x)  # x only rises from -29 to 6.5 and never comes back below
     gmsh.model.remove()
     return p
 
