@@ -57,6 +57,4 @@ Quat AimAlong(const Vec3& axis, double roll_rad) {
   return q;
 }
 
-Quat LookAt(const Vec3& eye, const Vec3& target) { return LookAtOrientation(eye, target); }
-
 }  // namespace arthrosim::input

@@ -11,6 +11,7 @@
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/rng.h"
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/core/units.h"
 #include "script_parser.h"
 
@@ -321,11 +322,13 @@ Timeline BuildTimeline(const std::string& yaml_text, const std::string& file, co
   }
 
   tl.camera_initial.position_mm = model.camera.initial_pose.position_mm;
-  // The initial look point: 30 mm ahead along the scope's +z (the way LookAt points it), so
-  // the first camera move turns the view from where it looked (a point behind the scope made
-  // every script's first move start by flipping the view round).
+  tl.camera_lens_angle_rad = model.camera.lens_angle_deg * units::kDegToRad;
+  // The initial look point: 30 mm ahead along the scope's oblique view (the way AimScopeView
+  // points it), so the first camera move turns the view from where it looked (a point behind
+  // the scope made every script's first move start by flipping the view round).
   tl.camera_initial.look.point_mm = model.camera.initial_pose.position_mm +
-                                    model.camera.initial_pose.orientation * Vec3(0, 0, 30);
+                                    model.camera.initial_pose.orientation *
+                                        (30.0 * ScopeViewDirectionLocal(tl.camera_lens_angle_rad));
   tl.camera_initial_orientation = model.camera.initial_pose.orientation;
   if (root["camera"]) BuildCamera(ps, root["camera"], &tl);
 

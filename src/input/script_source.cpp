@@ -8,6 +8,7 @@
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/input_file.h"
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/core/units.h"
 #include "script_timeline.h"
 
@@ -236,7 +237,9 @@ void ScriptSource::Frame(std::int64_t /*step*/, double t, InputFrame* out) {
   const Vec3 look =
       Lerp(LookPointAt(tl, a.start.look, t, offset), LookPointAt(tl, a.end.look, t, offset), e);
   cam.pose.position_mm = eye;
-  cam.pose.orientation = LookAt(eye, look);
+  // the oblique view (at zero lens roll) looks at the target; lens_roll then sweeps it about
+  // the shaft as turning the light post does
+  cam.pose.orientation = AimScopeView(eye, look, tl.camera_lens_angle_rad);
   cam.lens_roll_rad = Lerp(a.start.lens_roll_rad, a.end.lens_roll_rad, e);
   cam.head_roll_rad = Lerp(a.start.head_roll_rad, a.end.head_roll_rad, e);
 }

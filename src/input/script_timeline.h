@@ -95,6 +95,9 @@ struct Timeline {
   std::vector<CameraAction> camera;
   CameraKey camera_initial;
   Quat camera_initial_orientation = Quat::Identity();
+  /// The scope's lens angle (Model::camera): `look_at` and `follow` aim its oblique view, not
+  /// its shaft, at the target (AimScopeView).
+  double camera_lens_angle_rad = 0;
   std::array<Tremor, kToolSlots> tremor;
   double end_time_s = 0;
 };

@@ -17,6 +17,7 @@
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/hash.h"
 #include "arthrosim/core/input_file.h"
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/core/units.h"
 #include "arthrosim/core/yaml_fields.h"
 #include "arthrosim/mesh/mesh_io.h"
@@ -532,7 +533,8 @@ void ReadCamera(const YamlSection& root, Model* m) {
   const Vec3 target = s.Vector("look_at", eye + Vec3::UnitX());
   if ((target - eye).norm() <= 0)
     root.reader().Fail(s.Get("look_at"), s.Field("look_at"), "must differ from position");
-  c.initial_pose = Pose{eye, LookAtOrientation(eye, target)};
+  // the oblique view, not the shaft, looks at the target (the image centre)
+  c.initial_pose = Pose{eye, AimScopeView(eye, target, c.lens_angle_deg * units::kDegToRad)};
 }
 
 // Hands the reader's warnings to the caller, or prints them to stderr when it takes none.

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/mesh/surface.h"
 #include "instrument_shapes.h"
 #include "mesh_builder.h"
@@ -301,20 +302,7 @@ ViewFrame ScopeViewFrame(const SceneScope& scope) {
 }
 
 Pose AimScope(const Vec3& eye, const Vec3& target, const Vec3& up_hint, double lens_angle_rad) {
-  const Vec3 f = (target - eye).normalized();
-  Vec3 u = up_hint - up_hint.dot(f) * f;
-  u = u.norm() > 1e-9 ? Vec3(u.normalized()) : Vec3(f.unitOrthogonal());
-  // local +y and +z in world: f = sin(a) y + cos(a) z and u = cos(a) y - sin(a) z
-  const double sa = std::sin(lens_angle_rad), ca = std::cos(lens_angle_rad);
-  const Vec3 y = sa * f + ca * u, z = ca * f - sa * u;
-  Mat3 r;
-  r.col(0) = y.cross(z);
-  r.col(1) = y;
-  r.col(2) = z;
-  Pose pose;
-  pose.position_mm = eye;
-  pose.orientation = Quat(r).normalized();
-  return pose;
+  return Pose{eye, AimScopeView(eye, target, lens_angle_rad, up_hint)};
 }
 
 Scene BuildScene(const Model& model, const State& state) {

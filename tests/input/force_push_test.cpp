@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/scope_aim.h"
+#include "arthrosim/core/units.h"
 #include "arthrosim/input/script_source.h"
 #include "test_model.h"
 
@@ -151,10 +153,12 @@ TEST(ForcePush, ASecondForcePushStartsWhereTheFirstLeftAndTheCameraFollowsTheTip
   // The second starts from there (no jump back to the written position) and relaxes to 0.5 mm.
   EXPECT_NEAR(r.depth_mm[IndexAt(r, 2.11)], first + 5.0 * kDt * (0.5 - first), 1e-9);
   EXPECT_NEAR(r.depth_mm[IndexAt(r, 3.09)], 0.5, 0.01);
-  // The camera keeps the pushed tip on its line of sight (+z, LookAtOrientation).
+  // The camera keeps the pushed tip on its line of sight (the oblique view, AimScopeView).
   const InputFrame& f = r.frames[IndexAt(r, 3.09)];
   const Vec3 to_tip = (f.tools[0].pose.position_mm - f.camera.pose.position_mm).normalized();
-  EXPECT_NEAR((f.camera.pose.orientation * Vec3::UnitZ()).dot(to_tip), 1.0, 1e-9);
+  const Vec3 view = f.camera.pose.orientation *
+                    ScopeViewDirectionLocal(m.camera.lens_angle_deg * units::kDegToRad);
+  EXPECT_NEAR(view.dot(to_tip), 1.0, 1e-9);
 }
 
 TEST(ForcePush, SameFeedbackGivesBitIdenticalFramesAndRepeatedTimesAreIdempotent) {

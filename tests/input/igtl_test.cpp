@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/input/igtl_client.h"
 #include "arthrosim/input/igtl_server.h"
 #include "arthrosim/input/open_source.h"
@@ -75,7 +76,7 @@ SessionTable MakeSession(int samples) {
     c.t_s = ts;
     c.device = Device::kScope;
     c.position_mm = Vec3(-30, 0, 8) + Vec3(ts, ts, 0);
-    c.orientation = LookAt(c.position_mm, Vec3(0, 0, 5));
+    c.orientation = AimScopeView(c.position_mm, Vec3(0, 0, 5), 0.0);
     c.lens_roll_rad = ts;
     c.head_roll_rad = -ts;
     t.rows.push_back(a);

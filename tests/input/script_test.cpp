@@ -7,6 +7,7 @@
 #include <string>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/scope_aim.h"
 #include "arthrosim/core/units.h"
 #include "arthrosim/input/pose_math.h"
 #include "arthrosim/input/script_source.h"
@@ -145,12 +146,15 @@ slot0:
   InputFrame f = At(s, 1.0);
   const Vec3 sc = m.landmarks[m.FindLandmark("subacromial_center")].position_mm;
   EXPECT_NEAR((f.camera.pose.position_mm - (sc + Vec3(-20, 0, 0))).norm(), 0, 1e-12);
-  EXPECT_NEAR(((f.camera.pose.orientation * Vec3(0, 0, 1)) - Vec3(1, 0, 0)).norm(), 0, 1e-12);
+  // the oblique view at zero lens roll (not the shaft) looks at the target; lens_roll then
+  // sweeps it about the shaft
+  const Vec3 view_local = ScopeViewDirectionLocal(m.camera.lens_angle_deg * units::kDegToRad);
+  EXPECT_NEAR(((f.camera.pose.orientation * view_local) - Vec3(1, 0, 0)).norm(), 0, 1e-12);
   EXPECT_NEAR(f.camera.lens_roll_rad, 30 * units::kDegToRad, 1e-15);
   EXPECT_NEAR(f.camera.head_roll_rad, -10 * units::kDegToRad, 1e-15);
   for (double t : {1.6, 2.2, 2.9}) {
     f = At(s, t);
-    const Vec3 view = f.camera.pose.orientation * Vec3(0, 0, 1);
+    const Vec3 view = f.camera.pose.orientation * view_local;
     const Vec3 to_tip = (f.tools[0].pose.position_mm - f.camera.pose.position_mm).normalized();
     EXPECT_NEAR((view - to_tip).norm(), 0, 1e-9) << t;
   }
@@ -169,13 +173,14 @@ camera:
 )";
   ScriptSource s(y, "t.yaml", m, Opt());
   const Vec3 eye = m.camera.initial_pose.position_mm;
-  const Vec3 initial_view = m.camera.initial_pose.orientation * Vec3::UnitZ();
+  const Vec3 view_local = ScopeViewDirectionLocal(m.camera.lens_angle_deg * units::kDegToRad);
+  const Vec3 initial_view = m.camera.initial_pose.orientation * view_local;
   const Vec3 to_target =
       (m.landmarks[m.FindLandmark("footprint_center")].position_mm - eye).normalized();
   double last = -2;
   for (double t : {0.0, 0.02, 0.1, 0.3, 0.5, 0.7, 1.0}) {
     const InputFrame f = At(s, t);
-    const Vec3 view = f.camera.pose.orientation * Vec3::UnitZ();
+    const Vec3 view = f.camera.pose.orientation * view_local;
     EXPECT_GT(view.dot(initial_view), initial_view.dot(to_target) - 1e-9) << t;  // in between
     EXPECT_GE(view.dot(to_target), last - 1e-12) << t;  // turns toward the target
     last = view.dot(to_target);

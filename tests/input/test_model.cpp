@@ -5,6 +5,8 @@
 #include <filesystem>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/scope_aim.h"
+#include "arthrosim/core/units.h"
 #include "arthrosim/input/pose_math.h"
 #include "arthrosim/input/script_source.h"
 
@@ -47,7 +49,8 @@ Model MakeTestModel() {
                  {"muscle_belly", "muscle", Vec3(-20, 10, 0)}};
   m.camera.portal = "posterior";
   m.camera.initial_pose.position_mm = Vec3(-30, 0, 8);
-  m.camera.initial_pose.orientation = LookAt(Vec3(-30, 0, 8), Vec3(0, 0, 5));
+  m.camera.initial_pose.orientation =
+      AimScopeView(Vec3(-30, 0, 8), Vec3(0, 0, 5), m.camera.lens_angle_deg * units::kDegToRad);
   return m;
 }
 
@@ -73,7 +76,10 @@ Model LoadScenarioSubset(const std::string& path) {
   if (root["camera"] && root["camera"]["position"] && root["camera"]["look_at"]) {
     const Vec3 eye = ToVec(root["camera"]["position"]);
     m.camera.initial_pose.position_mm = eye;
-    m.camera.initial_pose.orientation = LookAt(eye, ToVec(root["camera"]["look_at"]));
+    if (root["camera"]["lens_angle"])
+      m.camera.lens_angle_deg = root["camera"]["lens_angle"].as<double>();
+    m.camera.initial_pose.orientation = AimScopeView(eye, ToVec(root["camera"]["look_at"]),
+                                                     m.camera.lens_angle_deg * units::kDegToRad);
   }
   return m;
 }

@@ -27,21 +27,4 @@ struct Pose {
   }
 };
 
-/// Orientation whose +z axis (forward, see the tool-frame convention in model.h) points from
-/// `eye` to `target` and whose +y (image up) is as close as possible to world +z (world +y when
-/// looking straight up or down). Identity if eye == target.
-inline Quat LookAtOrientation(const Vec3& eye, const Vec3& target) {
-  Vec3 forward = target - eye;
-  const double n = forward.norm();
-  if (!(n > 0.0)) return Quat::Identity();
-  forward /= n;
-  const Vec3 up = std::abs(forward.z()) > 1.0 - 1e-9 ? Vec3::UnitY() : Vec3::UnitZ();
-  const Vec3 x = up.cross(forward).normalized();
-  Mat3 r;
-  r.col(0) = x;
-  r.col(1) = forward.cross(x);
-  r.col(2) = forward;
-  return Quat(r).normalized();
-}
-
 }  // namespace arthrosim

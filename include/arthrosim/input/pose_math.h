@@ -25,10 +25,6 @@ Quat Slerp(const Quat& a, const Quat& b, double u);
 /// minimal rotation from world +z, then rotated by roll_rad about that axis.
 Quat AimAlong(const Vec3& axis, double roll_rad = 0.0);
 
-/// Camera orientation whose +z axis looks from `eye` to `target` (mm) and whose +y is as close as
-/// possible to world +z (world +y if the view is vertical). Returns identity if eye == target.
-Quat LookAt(const Vec3& eye, const Vec3& target);
-
 /// Linear interpolation a + (b - a) * u, exact at u = 0 (returns a).
 inline Vec3 Lerp(const Vec3& a, const Vec3& b, double u) {
   if (u == 0.0) return a;

@@ -117,7 +117,8 @@ SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone);
 ViewFrame ScopeViewFrame(const SceneScope& scope);
 
 /// Scope tip pose at `eye` (mm) whose oblique view (lens tilted `lens_angle_rad` toward +y, zero
-/// rolls) looks at `target` with the image up as close as possible to `up_hint`.
+/// rolls) looks at `target` with the image up as close as possible to `up_hint`: the pose form of
+/// arthrosim::AimScopeView (core/scope_aim.h), which scripts and scenarios aim with too.
 Pose AimScope(const Vec3& eye, const Vec3& target, const Vec3& up_hint, double lens_angle_rad);
 
 }  // namespace arthrosim::render
