@@ -1,5 +1,6 @@
 // Motion metrics per instrument and for the camera, and what the camera showed: the share of
-// working time the tip was in view, the horizon deviation.
+// working time a tip was seen (in the view cone and not hidden behind tissue or bone), the
+// horizon deviation.
 #include <fmt/core.h>
 
 #include <cmath>
@@ -93,15 +94,15 @@ void CameraView(const Plan& plan, const RunData& run, ScoreReport* report) {
     for (const InstrumentSeries& s : run.instruments) {
       if (!s.active[k]) continue;
       any = true;
-      seen = seen || PointInView(run.model, run.camera[k], s.pose[k].position_mm);
+      seen = seen || s.tip_visible[k] != 0;
     }
     if (!any) continue;
     working += dt;
     if (seen) in_view += dt;
   }
   AddMetric(report, "camera.tip_in_view", "efficiency",
-            "share of working time with an instrument tip in the scope's view", "",
-            working > 0 ? in_view / working : kNaN,
+            "share of working time with an instrument tip seen by the scope (in view, not hidden)",
+            "", working > 0 ? in_view / working : kNaN,
             working > 0 ? std::optional(plan.motion.min_tip_in_view) : std::nullopt, std::nullopt);
   AddMetric(report, "camera.horizon_deviation", "efficiency",
             "mean camera horizon deviation from anatomic up", "deg",

@@ -9,6 +9,7 @@
 #include "arthrosim/io/run_reader.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/render/scene.h"
+#include "arthrosim/scoring/sight.h"
 
 namespace arthrosim::scoring {
 namespace {
@@ -38,6 +39,24 @@ void CheckMatches(const std::string& path, const io::RunInfo& info, const Model&
           "instrument differs from the scenario's '" + model.instruments[i].name + "'");
 }
 
+// Which inserted instruments' tips the scope sees in this frame (`blockers` updated only when
+// some tip is in the view cone: most frames need no surface at all).
+void AppendTipVisibility(const State& s, SightBlockers* blockers, RunData* d) {
+  bool updated = false;
+  for (int slot = 0; slot < kToolSlots; ++slot) {
+    const ToolState& t = s.tools[slot];
+    if (t.instrument < 0 || t.instrument >= static_cast<int>(d->instruments.size())) continue;
+    const Vec3& tip = t.pose.position_mm;
+    if (!PointInView(d->model, s.camera, tip)) continue;
+    if (!updated) blockers->Update(d->model, s);
+    updated = true;
+    const double margin =
+        d->model.instruments[static_cast<std::size_t>(t.instrument)].tip_radius_mm;
+    d->instruments[t.instrument].tip_visible.back() =
+        TipVisible(d->model, s.camera, tip, margin, *blockers) ? 1 : 0;
+  }
+}
+
 void AppendFrame(const State& s, RunData* d) {
   d->time_s.push_back(s.time_s);
   d->step.push_back(s.step);
@@ -46,6 +65,7 @@ void AppendFrame(const State& s, RunData* d) {
     series.pose.emplace_back();
     series.force_n.push_back(0.0);
     series.slot.push_back(-1);
+    series.tip_visible.push_back(0);
   }
   for (int slot = 0; slot < kToolSlots; ++slot) {
     const ToolState& t = s.tools[slot];
@@ -88,14 +108,16 @@ RunData ReadRunData(const std::string& run_path, Model model) {
   d.path = run_path;
   d.model = std::move(model);
   for (const InstrumentModel& im : d.model.instruments)
-    d.instruments.push_back({im.name, InstrumentKindName(im.kind), {}, {}, {}, {}});
+    d.instruments.push_back({im.name, InstrumentKindName(im.kind), {}, {}, {}, {}, {}});
   d.bone_removed_mm3.resize(d.model.bones.size());
   const std::int64_t frames = reader.frame_count();
   if (frames == 0) throw InputError(run_path, 0, "/time", "the run holds no frame");
   State s;
+  SightBlockers blockers;
   for (std::int64_t k = 0; k < frames; ++k) {
     reader.ReadFrame(k, s);
     AppendFrame(s, &d);
+    AppendTipVisibility(s, &blockers, &d);
   }
   d.last = std::move(s);
   d.events = reader.EventsUpTo(frames - 1);

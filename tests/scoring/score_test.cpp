@@ -317,6 +317,26 @@ TEST(Score, CameraLookingAwayLosesTheView) {
   ExpectFailingMetric(r, "camera.tip_in_view", 0.0);
 }
 
+// The awl's tip is in the view cone from below the humerus but behind the bone: its 31 frames
+// are not seen, so at most the burr's half of the working time counts (1.0 with the occlusion
+// check removed: every tip is in the cone).
+TEST(Score, ATipBehindBoneIsNotInView) {
+  SynthSpec spec;
+  spec.camera_below_bone = true;
+  const Scored s = ScoreSynth("below_bone", spec);
+  const InstrumentSeries& awl = s.run.instruments[1];
+  ASSERT_EQ(awl.name, "awl");
+  int awl_frames = 0;
+  for (std::int64_t k = 0; k < s.run.frames(); ++k) {
+    if (!awl.active[k]) continue;
+    ++awl_frames;
+    EXPECT_TRUE(PointInView(s.run.model, s.run.camera[k], awl.pose[k].position_mm)) << k;
+    EXPECT_EQ(awl.tip_visible[k], 0) << k;
+  }
+  EXPECT_EQ(awl_frames, 31);
+  EXPECT_LE(Find(s.report, "camera.tip_in_view").value, 0.5 + 1e-12);
+}
+
 TEST(Score, RolledCameraHeadDeviatesFromTheHorizon) {
   SynthSpec spec;
   spec.head_roll_rad = std::numbers::pi / 2;

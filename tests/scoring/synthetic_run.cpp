@@ -147,7 +147,7 @@ steps:
 void WriteSynthRun(const std::string& path, const SynthSpec& spec) {
   const Model model = MakeSynthModel();
   State s = MakeInitialState(model);
-  const Vec3 eye(0, -30, 25);
+  const Vec3 eye = spec.camera_below_bone ? Vec3(0, -1, -30) : Vec3(0, -30, 25);
   const Vec3 look = spec.camera_away ? Vec3(0, -80, 60) : kView;
   const Pose cam = render::AimScope(eye, look, Vec3::UnitZ(), 30.0 * std::numbers::pi / 180.0);
   auto frame_state = [&](int f) {

@@ -29,6 +29,9 @@ struct SynthSpec {
       muscle_burr_frames;           ///< more burr events on the protected muscle, at these frames
   double muscle_touch_force_n = 0;  ///< > 0: grasper touches the muscle frames 85..95
   bool camera_away = false;         ///< the camera looks away from every landmark
+  /// The camera looks at the same point from below the humerus: every awl tip position (on the
+  /// site, above the bone's top face) is in its view cone but behind the bone.
+  bool camera_below_bone = false;
   double head_roll_rad = 0;         ///< camera-head roll (horizon)
   bool awl_idle = false;            ///< the awl rests still for its whole insertion
   bool burr_zigzag = false;         ///< the burr path zig-zags (3x longer)

@@ -21,6 +21,9 @@ struct InstrumentSeries {
   std::vector<Pose> pose;            ///< tip pose (meaningful while active)
   std::vector<double> force_n;       ///< |contact force| on the instrument, N (0 when out)
   std::vector<std::int8_t> slot;     ///< tool slot holding it, -1 if none
+  /// 1 while inserted with its tip seen by the scope: in the view cone and not hidden behind
+  /// tissue or bone of that frame (TipVisible, margin = the instrument's tip radius).
+  std::vector<std::uint8_t> tip_visible;
 };
 
 struct RunData {

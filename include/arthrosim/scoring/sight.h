@@ -1,0 +1,53 @@
+#pragma once
+// Line of sight in a recorded frame: whether tissue or bone hides a point from the scope. The
+// surfaces are those of the run file's frame (the scenario's soft bodies as the boundary of their
+// alive tets at the frame's node positions, and the bones' current surfaces, burring included);
+// threads and instruments hide nothing. Deterministic: the answer depends only on the frame.
+#include <cstdint>
+#include <vector>
+
+#include "arthrosim/collision/collision_mesh.h"
+#include "arthrosim/core/model.h"
+#include "arthrosim/core/state.h"
+
+namespace arthrosim::scoring {
+
+/// The tissue and bone surfaces of one frame with a box tree each, for segment queries.
+class SightBlockers {
+ public:
+  /// Takes the surfaces of `state` (its arrays in Model order). A soft body's tree is rebuilt
+  /// when its tets or their alive flags change and refit to the new node positions otherwise; a
+  /// bone's when its surface's revision or size changes (State::bones[i].revision contract).
+  /// @throws std::invalid_argument if the state's body counts differ from the model's or a
+  /// triangle or tet names a node the body lacks.
+  void Update(const Model& model, const State& state);
+
+  /// Whether the segment from `from` to `to` (mm) crosses a surface triangle, ignoring the
+  /// crossings closer than `skip_from_mm` to `from` or `skip_to_mm` to `to` (measured along the
+  /// segment). False when the skipped parts cover the whole segment.
+  bool Blocked(const Vec3& from, const Vec3& to, double skip_from_mm, double skip_to_mm) const;
+
+ private:
+  struct Body {
+    std::vector<mesh::Tet> tets;  // soft: the topology the tree was built for
+    std::vector<std::uint8_t> alive;
+    std::uint64_t revision = 0;  // bone: the surface the tree was built for
+    std::size_t nodes = 0, tris = 0;
+    bool built = false;
+    std::vector<std::int32_t> node_ids;  // soft: state node of each tree vertex
+    std::vector<Vec3> vertices;          // tree vertices, mm
+    std::vector<mesh::Tri> triangles;    // in tree vertex indices
+    collision::TriangleBvh tree;
+  };
+  std::vector<Body> soft_, bones_;
+};
+
+/// Whether the scope sees the point `tip_mm` in this frame: inside its view cone (PointInView)
+/// and no tissue or bone between the scope's eye and the point. Crossings within the camera's
+/// near distance of the eye (clipped by the renderer too) and within `tip_margin_mm` of the point
+/// (tissue the tip touches or has barely entered: its head still shows) do not hide it.
+/// `blockers` must hold the same frame's surfaces.
+bool TipVisible(const Model& model, const CameraState& camera, const Vec3& tip_mm,
+                double tip_margin_mm, const SightBlockers& blockers);
+
+}  // namespace arthrosim::scoring
