@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <memory>
 #include <numeric>
@@ -56,13 +57,22 @@ double Quantile(std::vector<double> v, double q) {
   return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
 }
 
+// CPU time of the calling thread, ms: unlike wall time, not inflated when the thread is
+// preempted on a loaded machine.
+double ThreadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
 double Max(const std::vector<double>& v) {
   return v.empty() ? 0 : *std::max_element(v.begin(), v.end());
 }
 
 struct Series {
   std::vector<double> step, kinematics, collision, rotations, assembly, solve, thread, output,
-      cg_it, physics;  // physics: soft tissue + threads (the step without collision)
+      cg_it, physics;              // physics: soft tissue + threads (the step without collision)
+  std::vector<double> output_cpu;  // CPU time of this thread in the output step
   double last_residual = 0;
   int refactors = 0;                // steps that took a new preconditioner factor into use
   int factor_steps = 0;             // steps that did factor work (a whole factor or a part)
@@ -98,10 +108,12 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
     sim::Step(model, frame, &state, &ws);
     source->Feedback(sim::Feedback(state));
+    const double cpu0_ms = ThreadCpuMs();
     const auto t0 = std::chrono::steady_clock::now();
     writer.Append(state);
     const double output_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double output_cpu_ms = ThreadCpuMs() - cpu0_ms;
     if (k < kWarmup) continue;
     const sim::StepTimings& t = ws.timings;
     s.step.push_back(t.total_ms);
@@ -113,6 +125,7 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     s.thread.push_back(t.thread_ms);
     s.physics.push_back(t.soft_ms + t.thread_ms);
     s.output.push_back(output_ms);
+    s.output_cpu.push_back(output_cpu_ms);
     s.cg_it.push_back(t.soft.cg_iterations);
     s.cg_it_max = std::max(s.cg_it_max, static_cast<double>(t.soft.cg_iterations));
     s.retried_steps += t.substeps > 1 ? 1 : 0;
@@ -124,11 +137,12 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     s.holds.push_back(holds);
     if (trace != nullptr) {
       fmt::print(trace,
-                 "{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{}\n",
+                 "{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{},{:.4f},"
+                 "{:.4f}\n",
                  state.step, t.total_ms, t.kinematics_ms, t.collision_ms, t.soft.rotations_ms,
                  t.soft.assembly_ms, t.soft.factor_ms, t.soft.solve_ms, t.instruments_ms,
                  t.soft.cg_iterations, t.soft.contact_resolves, t.soft.active_contacts,
-                 t.soft.refactored ? 1 : 0, t.soft.anchor_moved ? 1 : 0);
+                 t.soft.refactored ? 1 : 0, t.soft.anchor_moved ? 1 : 0, output_ms, output_cpu_ms);
     }
     s.last_residual = t.soft.cg_relative_residual;
     s.refactors += t.soft.refactored ? 1 : 0;
@@ -174,6 +188,9 @@ void PrintScenario(const Model& model, const Series& s, int steps) {
   fmt::print("output_ms_median={:.3f}\n", Median(s.output));
   // the flushes: once per output.flush_interval, the worst output steps
   fmt::print("output_ms_mean={:.3f}\noutput_ms_max={:.3f}\n", Mean(s.output), Max(s.output));
+  // the same in CPU time of the stepping thread (the run writer's own thread is not counted)
+  fmt::print("output_cpu_ms_median={:.3f}\noutput_cpu_ms_mean={:.3f}\noutput_cpu_ms_max={:.3f}\n",
+             Median(s.output_cpu), Mean(s.output_cpu), Max(s.output_cpu));
   fmt::print("cg_iterations_mean={:.2f}\n", Mean(s.cg_it));
   fmt::print("cg_residual_final={:.3g}\n", s.last_residual);
   fmt::print("step_ms_mean={:.3f}\n", Mean(s.step));
@@ -294,7 +311,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--trace", a->trace,
                   "Per-step CSV of the main figures' timed steps: wall ms of the step, its "
                   "stages (kinematics = tool proxies), factor work, CG iterations, contact "
-                  "re-solves, contact and spring terms, factor switched in / requested");
+                  "re-solves, contact and spring terms, factor switched in / requested, wall ms "
+                  "and thread CPU ms of writing the step's frame (RunWriter::Append; flushes and "
+                  "checkpoints included)");
   cmd->add_flag("--render", a->render, "Also measure rendering and encoding frame rates");
   cmd->callback([a, exit_code] {
     SetThreadCount(a->threads);
@@ -308,7 +327,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       fmt::print(trace.get(),
                  "step,total_ms,kinematics_ms,collision_ms,rotations_ms,assembly_ms,factor_ms,"
                  "solve_ms,instruments_ms,cg_iterations,contact_resolves,active_terms,"
-                 "refactored,factor_requested\n");
+                 "refactored,factor_requested,output_ms,output_cpu_ms\n");
     }
     PrintScenario(model, TimeScenario(model, a->trajectory, a->steps, -1, trace.get()), a->steps);
     trace.reset();

@@ -96,6 +96,21 @@ bool RunWriter::Impl::CheckpointDue(const State& s) const {
 
 void RunWriter::Impl::AppendCheckpoint(const State& s, std::int64_t frame) {
   detail::CheckpointOut& c = checkpoint;
+  // Encoding, hashing and compressing a State take ~10 ms for the shoulder scene: a job for the
+  // writer thread, on a copy of s (copy-assigned: its buffers are reused). Its series store
+  // their chunks at once (no queue): the job runs in its place in the queue's order.
+  if (c.done.load(std::memory_order_acquire) != c.queued) queue->Drain();  // copy still in use
+  c.pending = s;
+  c.pending_frame = frame;
+  ++c.queued;
+  queue->Call(&StoreCheckpoint, this);
+  ++c.count;
+  c.last_step = s.step;
+}
+
+void RunWriter::Impl::StoreCheckpoint(void* impl) {
+  detail::CheckpointOut& c = static_cast<RunWriter::Impl*>(impl)->checkpoint;
+  const State& s = c.pending;
   EncodeState(s, c.reference, &c.buffer);
   // Every checkpoint starts a chunk: sealing fills the last one up, so that appending the next
   // checkpoint never stores a chunk again.
@@ -106,11 +121,10 @@ void RunWriter::Impl::AppendCheckpoint(const State& s, std::int64_t frame) {
   AppendOne(c.offset, start);
   AppendOne(c.size, static_cast<std::int64_t>(c.buffer.size()));
   AppendOne(c.step, s.step);
-  AppendOne(c.frame, frame);
+  AppendOne(c.frame, c.pending_frame);
   AppendOne(c.hash, HashState(s));
   AppendOne(c.time, s.time_s);
-  ++c.count;
-  c.last_step = s.step;
+  c.done.fetch_add(1, std::memory_order_release);
 }
 
 // ---- reading -----------------------------------------------------------------------------------

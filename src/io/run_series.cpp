@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "arthrosim/io/hdf5_layout.h"
+#include "write_queue.h"
 
 namespace arthrosim::io::detail {
 namespace {
@@ -25,6 +26,19 @@ hsize_t ChunkFrames(hsize_t interval, std::size_t row_bytes) {
     }
   }
   return 1;
+}
+
+// Grows ds's extent, through `queue` when there is one.
+void SetExtentVia(WriteQueue* queue, h5::Dataset& ds, int rank, const hsize_t* dims) {
+  if (queue != nullptr) return queue->SetExtent(&ds, rank, dims);
+  ds.SetExtent(rank, dims);
+}
+
+// Compresses and stores one chunk, through `queue` when there is one (which copies `data`).
+void StoreChunkVia(WriteQueue* queue, ChunkCodec& codec, h5::Dataset& ds, int rank,
+                   const hsize_t* offset, const unsigned char* data, std::size_t count) {
+  if (queue != nullptr) return queue->WriteChunk(&codec, &ds, rank, offset, data, count);
+  codec.Write(ds, offset, data, count);
 }
 
 }  // namespace
@@ -279,7 +293,7 @@ void FrameSeries::WriteChunks(hsize_t t0, hsize_t nt) {
     std::array<hsize_t, kMaxRank> offset{};
     offset[0] = t0;
     for (int d = 1; d < rank_; ++d) offset[d] = k[d] * chunk_[d];
-    codec_.Write(ds_, offset.data(), chunk_buf_.data(), chunk_elements);
+    StoreChunkVia(queue_, codec_, ds_, rank_, offset.data(), chunk_buf_.data(), chunk_elements);
     int d = rank_ - 1;
     for (; d >= 1; --d) {
       if (++k[d] < grid[d]) break;
@@ -298,7 +312,7 @@ void FrameSeries::WriteOut(bool partial) {
   if (end <= first_ || (end <= extent_[0] && !rows_grew)) return;  // nothing new to store
   std::array<hsize_t, kMaxRank> dims = row_;
   dims[0] = std::max(end, extent_[0]);
-  ds_.SetExtent(rank_, dims.data());
+  SetExtentVia(queue_, ds_, rank_, dims.data());
   extent_ = dims;
   for (hsize_t t0 = first_; t0 < end; t0 += c) WriteChunks(t0, std::min(c, end - t0));
   // Full chunks leave the buffer; a part-filled one stays (stored again once full).
@@ -339,7 +353,7 @@ void RowSeries::StoreFullChunks() {
   if (full <= first_) return;
   if (full > extent_) {
     const hsize_t dims[2] = {static_cast<hsize_t>(full), static_cast<hsize_t>(columns_)};
-    ds_.SetExtent(columns_ > 0 ? 2 : 1, dims);
+    SetExtentVia(queue_, ds_, columns_ > 0 ? 2 : 1, dims);
     extent_ = full;
   }
   const std::size_t chunk_bytes = static_cast<std::size_t>(chunk_rows_) * row_bytes_;
@@ -348,7 +362,8 @@ void RowSeries::StoreFullChunks() {
   std::size_t at = 0;
   for (std::int64_t r = first_; r < full; r += chunk_rows_, at += chunk_bytes) {
     const hsize_t offset[2] = {static_cast<hsize_t>(r), 0};
-    codec_.Write(ds_, offset, pending_.data() + at, elements);
+    StoreChunkVia(queue_, codec_, ds_, columns_ > 0 ? 2 : 1, offset, pending_.data() + at,
+                  elements);
   }
   pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(at));
   first_ = full;
@@ -364,14 +379,14 @@ void RowSeries::WriteOut(Tail tail) {
   }
   if (stored_tail_ == total_) return;  // stored as it is already
   const hsize_t dims[2] = {static_cast<hsize_t>(total_), static_cast<hsize_t>(columns_)};
-  ds_.SetExtent(columns_ > 0 ? 2 : 1, dims);
+  SetExtentVia(queue_, ds_, columns_ > 0 ? 2 : 1, dims);
   extent_ = total_;
   // A whole chunk's bytes: the rows beyond the extent are zeros.
   const std::size_t have = pending_.size();
   pending_.resize(static_cast<std::size_t>(chunk_rows_) * row_bytes_, 0);
   const hsize_t offset[2] = {static_cast<hsize_t>(first_), 0};
-  codec_.Write(ds_, offset, pending_.data(),
-               static_cast<std::size_t>(chunk_rows_) * (columns_ > 0 ? columns_ : 1));
+  StoreChunkVia(queue_, codec_, ds_, columns_ > 0 ? 2 : 1, offset, pending_.data(),
+                static_cast<std::size_t>(chunk_rows_) * (columns_ > 0 ? columns_ : 1));
   pending_.resize(have);
   stored_tail_ = total_;
 }

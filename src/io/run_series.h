@@ -21,6 +21,8 @@
 
 namespace arthrosim::io::detail {
 
+class WriteQueue;
+
 /// Turns one chunk of elements in memory layout into the bytes HDF5 stores for it: conversion
 /// to the file type (compound records differ), byte shuffle and deflate (zlib format).
 class ChunkCodec {
@@ -31,6 +33,7 @@ class ChunkCodec {
   /// `offset` of `ds`. No C++ heap allocation once the scratch buffers have grown.
   void Write(h5::Dataset& ds, const hsize_t* offset, const unsigned char* data, std::size_t count);
   hid_t mem_type() const { return mem_type_; }
+  std::size_t mem_bytes() const { return mem_bytes_; }
 
  private:
   hid_t mem_type_ = -1, file_type_ = -1;
@@ -68,6 +71,8 @@ class FrameSeries {
   hsize_t frames() const { return frames_; }
   std::size_t buffered_bytes() const { return buf_.size(); }
   hsize_t chunk_frames() const { return chunk_[0]; }
+  /// From now on extents and chunks go through `queue` (write_queue.h; nullptr: stored at once).
+  void set_queue(WriteQueue* queue) { queue_ = queue; }
 
  private:
   void PushBytes(const void* value, std::size_t bytes);
@@ -79,6 +84,7 @@ class FrameSeries {
 
   h5::Dataset ds_;
   ChunkCodec codec_;
+  WriteQueue* queue_ = nullptr;
   std::size_t element_bytes_ = 0;  // of the memory type
   int rank_ = 0;
   std::array<hsize_t, kMaxRank> row_{};            // [-, row shape of the buffered frames]
@@ -113,12 +119,15 @@ class RowSeries {
   std::size_t buffered_bytes() const { return pending_.size(); }
   const std::string& path() const { return ds_.path(); }
   h5::Dataset& dataset() { return ds_; }
+  /// As FrameSeries::set_queue.
+  void set_queue(WriteQueue* queue) { queue_ = queue; }
 
  private:
   void StoreFullChunks();
 
   h5::Dataset ds_;
   ChunkCodec codec_;
+  WriteQueue* queue_ = nullptr;
   int columns_ = 0;
   std::size_t row_bytes_ = 0;
   std::int64_t chunk_rows_ = 1;
@@ -151,6 +160,10 @@ class BlockSeries {
   const std::string& path() const { return data_.path(); }
   std::size_t buffered_bytes() const {
     return data_.buffered_bytes() + offset_.buffered_bytes() + count_.buffered_bytes();
+  }
+  /// As FrameSeries::set_queue, for the rows and the offsets and counts.
+  void set_queue(WriteQueue* queue) {
+    data_.set_queue(queue), offset_.set_queue(queue), count_.set_queue(queue);
   }
 
  private:

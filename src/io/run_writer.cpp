@@ -163,6 +163,7 @@ void RunWriter::Impl::WriteBodies(const State& s) {
     WriteFields(sb, &b.fields, nullptr, n);
     b.node_count.Push(static_cast<std::int64_t>(n));
     if (e > b.written.size()) {  // tets appended by splitting
+      queue->Drain();  // a direct HDF5 call: after the queued ones, as without the writer thread
       const std::size_t first = b.written.size();
       b.elements.AppendRows(H5T_NATIVE_INT32, sb.tets[first].data(), e - first);
       b.written.insert(b.written.end(), sb.tets.begin() + static_cast<std::ptrdiff_t>(first),
@@ -317,28 +318,58 @@ void RunWriter::Impl::ListFrame(double time_s) {
   });
 }
 
+void RunWriter::Impl::WriteSidecar(void* impl) {
+  auto& m = *static_cast<RunWriter::Impl*>(impl);
+  WriteXdmfFile(m.xmf_path, m.sidecar);
+  m.sidecar_done.fetch_add(1, std::memory_order_release);
+}
+
 void RunWriter::Impl::WriteXdmf() {
   if (!options.write_xdmf) return;
   xdmf_frames = frames;
+  // The writer thread may still be writing the previous sidecar (rare: a sidecar is due at most
+  // once per flush): wait for it before refilling the copy.
+  if (sidecar_done.load(std::memory_order_acquire) != sidecar_queued) queue->Drain();
   ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries& b) { x.total_rows = b.total_rows(); });
-  // The last frame is always listed: added for this write when it was not due.
-  const bool add_last = listed.frame_index.back() != frames - 1;
-  if (add_last) {
-    listed.times.push_back(last_time_s);
-    listed.frame_index.push_back(frames - 1);
-    ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries& b) {
+  sidecar = listed;  // copy-assignment: reuses the copy's capacity
+  // The last frame is always listed: added to the copy when it was not due.
+  if (sidecar.frame_index.back() != frames - 1) {
+    sidecar.times.push_back(last_time_s);
+    sidecar.frame_index.push_back(frames - 1);
+    std::size_t k = 0;
+    ForEachXdmfSeries([&](XdmfSeries&, const BlockSeries& b) {
+      XdmfSeries& x = k % 2 == 0 ? sidecar.meshes[k / 2].cells : sidecar.meshes[k / 2].points;
       x.offset.push_back(b.last_offset());
       x.count.push_back(b.last_count());
+      ++k;
     });
   }
-  WriteXdmfFile(xmf_path, listed);
-  if (add_last) {
-    listed.times.pop_back();
-    listed.frame_index.pop_back();
-    ForEachXdmfSeries([](XdmfSeries& x, const BlockSeries&) {
-      x.offset.pop_back();
-      x.count.pop_back();
-    });
+  ++sidecar_queued;
+  queue->Call(&WriteSidecar, this);
+}
+
+void RunWriter::Impl::UseQueue() {
+  queue = std::make_unique<WriteQueue>(options.background_writer, options.max_flushes_behind);
+  WriteQueue* q = queue.get();
+  ForEachSeries([q](auto& series) { series.set_queue(q); });
+  root_fields.series[time_series].set_queue(q);
+  events_end.set_queue(q);
+  events.set_queue(q);
+  // The checkpoint series are written by a job of the queue itself (StoreCheckpoint): directly.
+}
+
+void RunWriter::Impl::QueueFlush() {
+  WriteBlock(true);
+  queue->FlushFile(&file, frames);
+  flushed = frames;
+  // The sidecar is rewritten whole (every frame's entry names the datasets' current sizes), so
+  // rewriting it at every flush would cost O(frames^2) over a long session: beyond
+  // `xdmf_every_flush_frames` frames it is rewritten once it lags by the growth fraction, and
+  // always at Close (`arthrosim info RUN.h5 --write-xdmf` rebuilds it from a killed run).
+  const auto lagging = static_cast<double>(frames - xdmf_frames);
+  if (frames <= options.xdmf_every_flush_frames ||
+      lagging >= options.xdmf_growth * static_cast<double>(xdmf_frames)) {
+    WriteXdmf();
   }
 }
 
@@ -399,15 +430,21 @@ RunWriter::RunWriter(const std::string& path, const Model& model, const State& i
   try {
     m.CreateLayout(model, initial);
     m.CreateXdmf();
+    m.UseQueue();
     m.file.StartSwmrWrite();  // from here on no object may be created
     m.WriteFrame(initial);
     m.WriteBlock(true);
     if (m.checkpoint.every_steps > 0) m.AppendCheckpoint(initial, 0);
-    m.file.Flush();
+    m.queue->FlushFile(&m.file, m.frames);
     m.flushed = m.frames;
     m.WriteXdmf();
+    m.queue->Drain();  // frame 0 and the first checkpoint are durable when the writer exists
   } catch (...) {
     // Do not leave a half-made file behind.
+    try {
+      if (m.queue) m.queue->Drain();
+    } catch (...) {
+    }
     try {
       m.file.Close();
     } catch (...) {
@@ -440,12 +477,12 @@ void RunWriter::Append(const State& s) {
   m.WriteFrame(s);
   // Flushes fall on chunk boundaries of the per-frame datasets (flush_frames frames per chunk):
   // every flush writes whole chunks, which are never rewritten.
-  if (m.frames % m.flush_frames == 0) Flush();
+  if (m.frames % m.flush_frames == 0) m.QueueFlush();
   if (m.CheckpointDue(s)) {
     // The checkpoint alone is made durable: flushing the frames here, between two chunk
     // boundaries, would write part-filled chunks. Its frame follows with the next flush.
     m.AppendCheckpoint(s, m.frames - 1);
-    m.file.Flush();
+    m.queue->FlushFile(&m.file, -1);
   }
 }
 
@@ -460,18 +497,8 @@ void RunWriter::WriteCheckpoint(const State& s) {
 void RunWriter::Flush() {
   Impl& m = *impl_;
   if (m.closed) throw std::logic_error("RunWriter: Flush after Close");
-  m.WriteBlock(true);
-  m.file.Flush();
-  m.flushed = m.frames;
-  // The sidecar is rewritten whole (every frame's entry names the datasets' current sizes), so
-  // rewriting it at every flush would cost O(frames^2) over a long session: beyond
-  // `xdmf_every_flush_frames` frames it is rewritten once it lags by the growth fraction, and
-  // always at Close (`arthrosim info RUN.h5 --write-xdmf` rebuilds it from a killed run).
-  const auto lagging = static_cast<double>(m.frames - m.xdmf_frames);
-  if (m.frames <= m.options.xdmf_every_flush_frames ||
-      lagging >= m.options.xdmf_growth * static_cast<double>(m.xdmf_frames)) {
-    m.WriteXdmf();
-  }
+  m.QueueFlush();
+  m.queue->Drain();
 }
 
 void RunWriter::Close() {
@@ -481,10 +508,15 @@ void RunWriter::Close() {
   std::exception_ptr error;
   try {
     m.WriteBlock(true);
-    m.file.Flush();
+    m.queue->FlushFile(&m.file, m.frames);
     m.flushed = m.frames;
   } catch (...) {
     error = std::current_exception();
+  }
+  try {
+    m.queue->Drain();  // every queued job has run (or the first error is known)
+  } catch (...) {
+    if (!error) error = std::current_exception();
   }
   try {
     m.file.Close();  // always, so that the file is left consistent
@@ -493,11 +525,12 @@ void RunWriter::Close() {
   }
   if (error) std::rethrow_exception(error);
   m.WriteXdmf();
+  m.queue->Drain();
 }
 
 std::int64_t RunWriter::frames() const { return impl_->frames; }
 std::int64_t RunWriter::checkpoints() const { return impl_->checkpoint.count; }
-std::int64_t RunWriter::flushed_frames() const { return impl_->flushed; }
+std::int64_t RunWriter::flushed_frames() const { return impl_->queue->durable_frames(); }
 const std::string& RunWriter::path() const { return impl_->path; }
 const std::string& RunWriter::xdmf_path() const { return impl_->xmf_path; }
 

@@ -4,8 +4,10 @@
 // every group and dataset up front).
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -19,6 +21,7 @@
 #include "arthrosim/io/xdmf.h"
 #include "run_series.h"
 #include "state_datasets.h"
+#include "write_queue.h"
 
 namespace arthrosim::io {
 namespace detail {
@@ -171,8 +174,14 @@ struct CheckpointOut {
   State reference;                   // checkpoint bytes are XORed with it: the initial State
   std::vector<std::uint8_t> buffer;  // encoding of the last checkpoint (capacity reused)
   std::int64_t every_steps = 0;      // 0 = checkpoints off
-  std::int64_t count = 0;
-  std::int64_t last_step = -1;  // step of the last checkpoint (-1 = none yet)
+  std::int64_t count = 0;            // queued (the writer thread may not have stored them yet)
+  std::int64_t last_step = -1;       // step of the last checkpoint (-1 = none yet)
+  // The State the writer thread stores next (StoreCheckpoint) and its frame; `queued` jobs of
+  // which `done` have run (the step thread refills `pending` only when they are equal).
+  State pending;
+  std::int64_t pending_frame = -1;
+  std::int64_t queued = 0;
+  std::atomic<std::int64_t> done{0};
 };
 
 }  // namespace detail
@@ -219,6 +228,11 @@ struct RunWriter::Impl {
   // simulated second, not 50) and their blocks; the series' total_rows are set when written.
   XdmfRun listed;
   double last_listed_s = 0;
+  // What the writer thread writes as the sidecar (a copy of `listed` plus the last frame): the
+  // step thread refills it only once the previous sidecar job has run.
+  XdmfRun sidecar;
+  std::int64_t sidecar_queued = 0;
+  std::atomic<std::int64_t> sidecar_done{0};
 
   // Scratch buffers reused every frame.
   std::vector<std::int32_t> ints;
@@ -239,8 +253,12 @@ struct RunWriter::Impl {
   void CreateCheckpoints(const Model& model);
   /// True when s (just written as a frame) starts a new checkpoint interval.
   bool CheckpointDue(const State& s) const;
-  /// Encodes s and appends it to /checkpoints (not flushed); `frame` = its frame or -1.
+  /// Queues s to be encoded and appended to /checkpoints (not flushed); `frame` = its frame or
+  /// -1.
   void AppendCheckpoint(const State& s, std::int64_t frame);
+  /// The checkpoint job (writer thread): encodes and stores `checkpoint.pending` of the Impl at
+  /// `impl`.
+  static void StoreCheckpoint(void* impl);
   void Validate(const State& s) const;
   /// Buffers `s` as the next frame; writes the buffered block when it is full.
   void WriteFrame(const State& s);
@@ -265,7 +283,20 @@ struct RunWriter::Impl {
   void ForEachXdmfSeries(F f);
   /// Adds the frame just written to `listed` when it is due.
   void ListFrame(double time_s);
+  /// Queues a rewrite of the sidecar listing the frames so far (the writer thread writes it).
   void WriteXdmf();
+  /// The sidecar job (writer thread): writes `sidecar` of the Impl at `impl`.
+  static void WriteSidecar(void* impl);
+  /// Stores every buffered frame, flushes the file and rewrites the sidecar when due, all
+  /// through the queue: returns before the writer thread has done it.
+  void QueueFlush();
+  /// Every series stores its chunks through `queue` (after the layout is created).
+  void UseQueue();
+
+  /// Runs the writer's HDF5 calls, zlib and sidecar writes in order, on a background thread
+  /// unless RunWriterOptions::background_writer is false. Last member: destroyed first (its
+  /// jobs point into the members above).
+  std::unique_ptr<detail::WriteQueue> queue;
 };
 
 }  // namespace arthrosim::io

@@ -66,6 +66,13 @@ struct RunWriterOptions {
   bool checkpoints = true;
   /// zlib level of the checkpoint bytes.
   int checkpoint_deflate_level = 6;
+  /// Compress and store chunks, flush the file and rewrite the sidecar on a writer thread, in
+  /// the order the step thread queues them, so that Append never waits for them (the file is
+  /// the same byte for byte as with false, where all of it runs inside Append). A flush waits
+  /// only while the thread has more than `max_flushes_behind` flushes still to do (memory stays
+  /// bounded by about that many flush intervals of frames when the disk is slow).
+  bool background_writer = true;
+  int max_flushes_behind = 1;
   RunOrigin origin;
 };
 
@@ -87,7 +94,9 @@ class RunWriter {
   void RecordEvents(const State& s);
   /// Appends `s` as the next frame (its step must be greater than the last frame's): buffered,
   /// written with its block. Flushes when s.time_s has advanced Model::options.flush_interval_s
-  /// or more since the last flush. No C++ heap allocation in steady state (buffers are reused).
+  /// or more since the last flush (queued for the writer thread: after a kill -9 the file holds
+  /// every frame up to the last flush that thread finished). No C++ heap allocation in steady state
+  /// (buffers are reused).
   /// @throws std::invalid_argument if `s` does not fit the model (checked before any write).
   void Append(const State& s);
   /// Stores a full, exact checkpoint of `s` (every State field; core/state_bytes.h) in
@@ -96,6 +105,8 @@ class RunWriter {
   /// nothing when the last checkpoint already has s's step or checkpoints are off.
   void WriteCheckpoint(const State& s);
   /// Makes every frame written so far durable and readable by SWMR readers; rewrites the .xmf.
+  /// Returns once it is done (the flushes Append makes by itself return at once and are done by
+  /// the writer thread).
   void Flush();
   /// Flushes, writes the .xmf and closes. Further Append/Flush calls throw std::logic_error.
   void Close();
@@ -104,7 +115,8 @@ class RunWriter {
   std::int64_t frames() const;
   /// Checkpoints written so far.
   std::int64_t checkpoints() const;
-  /// Frames made durable by the last flush.
+  /// Frames made durable by the last flush that finished (on the writer thread, the flushes
+  /// queued by Append finish after Append returns).
   std::int64_t flushed_frames() const;
   const std::string& path() const;
   /// The sidecar path ("" when options.write_xdmf is false).
