@@ -432,6 +432,17 @@ void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspac
   s.cap_s.reserve(16 * 16);
   s.cap_y.reserve(16);
   s.tri_chain.reserve(nodes + 1);
+  // Independent groups: at most one per node.
+  s.node_group.reserve(nodes);
+  s.stretch_group.reserve(nodes);
+  s.switch_group.reserve(2 * nodes + pairs);
+  for (std::vector<std::uint8_t>* v :
+       {&s.group_changed, &s.group_consistent, &s.group_done, &s.group_converged, &s.group_pending})
+    v->reserve(nodes);
+  for (std::vector<double>* v :
+       {&s.group_alpha, &s.group_e0, &s.group_e1, &s.group_slope, &s.group_step_max})
+    v->reserve(nodes);
+  s.step_kept.reserve(3 * nodes);
 }
 
 void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,

@@ -16,18 +16,69 @@ double StretchEnergy(const Term& t, const Points& x) {
   return 0.5 * (c < 0 ? t.k_compress : t.k) * c * c;
 }
 
-double TotalEnergy(const System& s, const Points& x) {
-  double e = 0;
+// Energy of every group at x, into *e (the incremental potential is their sum).
+void GroupEnergies(const System& s, const Points& x, std::vector<double>* e) {
+  e->assign(s.num_groups, 0.0);
   for (int i = 0; i < s.num_nodes; ++i) {
     if (s.dof[i] < 0) continue;
     const Vec3 dx = x.col(i) - s.x0.col(i);
-    e += 0.5 * s.inertia[i] * dx.squaredNorm() -
-         s.mass[i] * (dx.dot(s.v0.col(i)) / s.dt + dx.dot(s.gravity));
+    (*e)[s.node_group[i]] += 0.5 * s.inertia[i] * dx.squaredNorm() -
+                             s.mass[i] * (dx.dot(s.v0.col(i)) / s.dt + dx.dot(s.gravity));
   }
-  for (const Term& t : s.stretch_terms) e += StretchEnergy(t, x);
+  for (std::size_t j = 0; j < s.stretch_terms.size(); ++j)
+    (*e)[s.stretch_group[j]] += StretchEnergy(s.stretch_terms[j], x);
   for (const std::vector<Term>* list : {&s.fixed_terms, &s.pair_terms})
-    for (const Term& t : *list) e += TermEval(t, TermY(t, x), nullptr, nullptr);
-  return e;
+    for (const Term& t : *list)
+      (*e)[s.node_group[t.node[0]]] += TermEval(t, TermY(t, x), nullptr, nullptr);
+}
+
+// Groups: connected components of the nodes under the terms that couple them (stretch,
+// bending, multi-node point terms, segment-segment contacts), numbered in node order. Fills
+// s->node_group, s->stretch_group, s->switch_group and sizes the per-group buffers.
+void FindGroups(System* s) {
+  const int n = s->num_nodes;
+  std::vector<int>& root = s->node_group;  // union-find parent; a root is its smallest node
+  root.resize(n);
+  for (int i = 0; i < n; ++i) root[i] = i;
+  auto find = [&](int i) {
+    while (root[i] != i) {
+      root[i] = root[root[i]];
+      i = root[i];
+    }
+    return i;
+  };
+  auto unite = [&](int a, int b) {
+    a = find(a);
+    b = find(b);
+    if (a < b)
+      root[b] = a;
+    else if (b < a)
+      root[a] = b;
+  };
+  for (const Term& t : s->stretch_terms) unite(t.node[0], t.node[1]);
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms})
+    for (const Term& t : *list)
+      for (int k = 1; k < t.count; ++k) unite(t.node[0], t.node[k]);
+  // Point every node at its root, then number the roots in node order: a root is the
+  // smallest node of its group, so it is labelled (-1 - id) before its other nodes copy it.
+  for (int i = 0; i < n; ++i) root[i] = find(i);
+  int groups = 0;
+  for (int i = 0; i < n; ++i) root[i] = root[i] == i ? -1 - groups++ : root[root[i]];
+  for (int i = 0; i < n; ++i) root[i] = -1 - root[i];
+  s->num_groups = groups;
+  s->stretch_group.resize(s->stretch_terms.size());
+  for (std::size_t j = 0; j < s->stretch_terms.size(); ++j)
+    s->stretch_group[j] = root[s->stretch_terms[j].node[0]];
+  s->switch_group.clear();
+  for (const std::vector<Term>* list : {&s->fixed_terms, &s->pair_terms})
+    for (const Term& t : *list)
+      if (t.kind != Term::Kind::kSpring) s->switch_group.push_back(root[t.node[0]]);
+  for (std::vector<std::uint8_t>* v : {&s->group_changed, &s->group_consistent, &s->group_done,
+                                       &s->group_converged, &s->group_pending})
+    v->assign(groups, 0);
+  for (std::vector<double>* v :
+       {&s->group_alpha, &s->group_e0, &s->group_e1, &s->group_slope, &s->group_step_max})
+    v->assign(groups, 0.0);
 }
 
 // ---- Newton matrix: banded part (inertia, stretch, bending, point contacts and springs on
@@ -275,7 +326,8 @@ bool SolveModel(System* s) {
 }
 
 // Predicted activity of every switching term (contact planes, speed barriers) at x + step;
-// returns true if any changed. Uses y at x from BuildBase.
+// returns true if any changed, and flags the groups of the changed ones in s->group_changed
+// (the caller clears it). Uses y at x from BuildBase.
 bool UpdateSwitchActivity(System* s) {
   bool changed = false;
   int sw = 0;
@@ -295,7 +347,10 @@ bool UpdateSwitchActivity(System* s) {
         act = l > t.scalar ? 1 : 0;
         if (act) s->switch_dir[sw] = d / l;
       }
-      if (act != s->switch_active[sw]) changed = true;
+      if (act != s->switch_active[sw]) {
+        changed = true;
+        s->group_changed[s->switch_group[sw]] = 1;
+      }
       s->switch_active[sw++] = act;
     }
   }
@@ -340,22 +395,43 @@ void InitLambda(System* s, const Points& x) {
 // is still stable. Each iteration solves the model in which contact planes are exactly
 // piecewise quadratic: the activity of the planes is predicted from the step and the system
 // re-solved until it no longer changes (primal-dual active set), so Newton does not discover
-// the contacts of a thread landing on tissue one per iteration. Returns the iteration count;
-// *converged tells whether the update fell below the tolerance.
+// the contacts of a thread landing on tissue one per iteration. The energy is a sum over
+// independent groups (FindGroups; the Newton matrix is block diagonal over them), so each group
+// keeps its own consistent active set, line-search factor and convergence: a thread whose
+// contacts stay inconsistent does not hold back another. Returns the iteration count;
+// *converged tells whether every group's update fell below the tolerance.
 int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converged) {
   *converged = true;
   if (s->num_free == 0) return 0;
-  const int n3 = 3 * s->num_nodes;
+  const int n = s->num_nodes;
   InitLambda(s, *x);
   s->lambda_new.resize(s->lambda.size());
-  double e0 = TotalEnergy(*s, *x);
+  FindGroups(s);
+  const int ng = s->num_groups;
+  // A group without a free node has nothing to solve.
+  for (int i = 0; i < n; ++i)
+    if (s->dof[i] >= 0) s->group_pending[s->node_group[i]] = 1;
+  for (int g = 0; g < ng; ++g) s->group_done[g] = s->group_converged[g] = !s->group_pending[g];
+  GroupEnergies(*s, *x, &s->group_e0);
+  auto all_done = [&]() {
+    for (int g = 0; g < ng; ++g)
+      if (!s->group_done[g]) return false;
+    return true;
+  };
+  // Copies the nodes of the groups flagged in `which` from `from` (3 n values) into `to`.
+  auto copy_groups = [&](const std::vector<std::uint8_t>& which, const std::vector<double>& from,
+                         std::vector<double>* to) {
+    for (int i = 0; i < n; ++i)
+      if (which[s->node_group[i]])
+        for (int c = 0; c < 3; ++c) (*to)[3 * i + c] = from[3 * i + c];
+  };
   int it = 0;
-  *converged = false;
-  while (it < p.max_newton_iterations) {
+  while (it < p.max_newton_iterations && !all_done()) {
     ++it;
     // Pass 0: activity at x (plain Newton step, a descent direction). Further passes: activity
-    // predicted at x + step, kept only if it becomes consistent (then the step minimises the
-    // exact piecewise-quadratic contact model, also a descent direction).
+    // predicted at x + step; a group keeps the step of the pass whose prediction did not change
+    // its activity (it minimises the exact piecewise-quadratic contact model, also a descent
+    // direction), else its pass-0 step.
     bool negative = true;
     BuildBase(s, *x, true);
     SetSwitchActivityAt(s);
@@ -366,17 +442,36 @@ int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converg
       return SolveModel(s);
     };
     if (!solve()) break;
-    s->step0 = s->step;
-    bool consistent = !UpdateSwitchActivity(s);
-    for (int pass = 1; !consistent && pass < p.max_active_set_passes; ++pass) {
-      if (!solve()) break;
-      consistent = !UpdateSwitchActivity(s);
+    s->step_kept = s->step;
+    s->group_changed.assign(ng, 0);
+    UpdateSwitchActivity(s);
+    bool all_consistent = true;
+    for (int g = 0; g < ng; ++g) {
+      s->group_consistent[g] = s->group_done[g] || !s->group_changed[g];
+      all_consistent = all_consistent && s->group_consistent[g];
     }
-    if (!consistent) s->step = s->step0;  // s->grad is the true gradient in every pass
-    double slope = 0, step_max = 0;
-    for (int i = 0; i < n3; ++i) {
-      slope += s->grad[i] * s->step[i];
-      step_max = std::max(step_max, std::abs(s->step[i]));
+    for (int pass = 1; !all_consistent && pass < p.max_active_set_passes; ++pass) {
+      if (!solve()) break;
+      s->group_changed.assign(ng, 0);
+      UpdateSwitchActivity(s);
+      all_consistent = true;
+      for (int g = 0; g < ng; ++g) {
+        // Newly consistent: its step is final (its activity, so its step, no longer changes).
+        s->group_pending[g] = !s->group_consistent[g] && !s->group_changed[g];
+        if (s->group_pending[g]) s->group_consistent[g] = 1;
+        all_consistent = all_consistent && s->group_consistent[g];
+      }
+      copy_groups(s->group_pending, s->step, &s->step_kept);
+    }
+    std::swap(s->step, s->step_kept);  // s->grad is the true gradient in every pass
+    for (int g = 0; g < ng; ++g) s->group_slope[g] = s->group_step_max[g] = 0;
+    for (int i = 0; i < n; ++i) {
+      if (s->dof[i] < 0) continue;
+      const int g = s->node_group[i];
+      for (int c = 0; c < 3; ++c) {
+        s->group_slope[g] += s->grad[3 * i + c] * s->step[3 * i + c];
+        s->group_step_max[g] = std::max(s->group_step_max[g], std::abs(s->step[3 * i + c]));
+      }
     }
     // Multipliers of the linearised stretch constraints: k (c + u . (dx1 - dx0)).
     for (std::size_t j = 0; j < s->stretch_terms.size(); ++j) {
@@ -388,53 +483,82 @@ int NewtonSolve(System* s, const ThreadSolverParams& p, Points* x, bool* converg
       const double c = l - t.scalar + e.dot(de) / l;
       s->lambda_new[j] = (c < 0 ? t.k_compress : t.k) * c;
     }
-    if (step_max < p.newton_tolerance_mm) {  // converged: take the tiny step without a search
-      for (int i = 0; i < s->num_nodes; ++i)
-        if (s->dof[i] >= 0) x->col(i) += Eigen::Map<const Vec3>(s->step.data() + 3 * i);
-      *converged = true;
-      break;
+    // A group whose step is below the tolerance has converged: it takes the tiny step without
+    // a search. The others search their factor each.
+    for (int g = 0; g < ng; ++g) {
+      s->group_pending[g] = 0;
+      s->group_changed[g] = 0;
+      s->group_alpha[g] = 1.0;
+      if (s->group_done[g]) continue;
+      if (s->group_step_max[g] < p.newton_tolerance_mm) {
+        s->group_done[g] = s->group_converged[g] = 1;
+        s->group_changed[g] = 1;  // flags the groups that take their full step now
+      } else {
+        s->group_pending[g] = 1;
+      }
     }
-    double alpha = 1.0;
-    bool accepted = false;
-    double e1 = e0;
+    for (int i = 0; i < n; ++i)
+      if (s->dof[i] >= 0 && s->group_changed[s->node_group[i]])
+        x->col(i) += Eigen::Map<const Vec3>(s->step.data() + 3 * i);
+    s->x_next = *x;
     const int m = static_cast<int>(s->stretch_terms.size());
     s->tri_target.resize(m);
     s->tri_active.resize(m);
-    for (int ls = 0; ls < 30; ++ls) {
+    bool searching = false;
+    for (int g = 0; g < ng; ++g) searching = searching || s->group_pending[g];
+    for (int ls = 0; searching && ls < 30; ++ls) {
       s->trial = *x;
-      for (int i = 0; i < s->num_nodes; ++i)
-        if (s->dof[i] >= 0)
-          s->trial.col(i) += alpha * Eigen::Map<const Vec3>(s->step.data() + 3 * i);
+      for (int i = 0; i < n; ++i) {
+        const int g = s->node_group[i];
+        if (s->dof[i] >= 0 && s->group_pending[g])
+          s->trial.col(i) += s->group_alpha[g] * Eigen::Map<const Vec3>(s->step.data() + 3 * i);
+      }
       // Second-order correction: a straight step rotates stiff segments and so stretches
       // them to second order, which the energy would reject (Maratos effect; a falling chain
       // would crawl). Project the lengths onto their linearised values l + alpha u.(dx1 - dx0).
       for (int j = 0; j < m; ++j) {
-        const double lam = s->lambda[j] + alpha * (s->lambda_new[j] - s->lambda[j]);
+        const int g = s->stretch_group[j];
+        const double lam = s->lambda[j] + s->group_alpha[g] * (s->lambda_new[j] - s->lambda[j]);
         s->tri_target[j] =
             s->stretch_terms[j].scalar + lam / StretchStiffness(s->stretch_terms[j], lam);
-        s->tri_active[j] = 1;
+        s->tri_active[j] = s->group_pending[g];
       }
       ProjectLengths(s, false, 2, &s->trial);
-      e1 = TotalEnergy(*s, s->trial);
-      if (e1 <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
-        accepted = true;
-        break;
+      GroupEnergies(*s, s->trial, &s->group_e1);
+      searching = false;
+      for (int g = 0; g < ng; ++g) {
+        s->group_changed[g] = 0;  // flags the groups accepted in this round
+        if (!s->group_pending[g]) continue;
+        const double alpha = s->group_alpha[g];
+        if (s->group_e1[g] <= s->group_e0[g] + 1e-4 * alpha * std::min(s->group_slope[g], 0.0)) {
+          s->group_changed[g] = 1;
+          s->group_pending[g] = 0;
+          s->group_e0[g] = s->group_e1[g];
+          if (alpha * s->group_step_max[g] < p.newton_tolerance_mm)
+            s->group_done[g] = s->group_converged[g] = 1;
+        } else {
+          s->group_alpha[g] = 0.5 * alpha;
+          searching = true;
+        }
       }
-      alpha *= 0.5;
+      for (int i = 0; i < n; ++i)
+        if (s->group_changed[s->node_group[i]]) s->x_next.col(i) = s->trial.col(i);
+      for (int j = 0; j < m; ++j) {
+        const int g = s->stretch_group[j];
+        if (s->group_changed[g])
+          s->lambda[j] += s->group_alpha[g] * (s->lambda_new[j] - s->lambda[j]);
+      }
     }
-    if (!accepted) {  // rounding floor: the energy cannot resolve the step any more
-      *converged = step_max < 1e3 * p.newton_tolerance_mm;
-      break;
+    for (int g = 0; g < ng; ++g) {
+      if (!s->group_pending[g]) continue;
+      // Rounding floor: the energy cannot resolve the group's step any more.
+      s->group_done[g] = 1;
+      s->group_converged[g] = s->group_step_max[g] < 1e3 * p.newton_tolerance_mm;
     }
-    for (std::size_t j = 0; j < s->stretch_terms.size(); ++j)
-      s->lambda[j] += alpha * (s->lambda_new[j] - s->lambda[j]);
-    std::swap(*x, s->trial);
-    e0 = e1;
-    if (alpha * step_max < p.newton_tolerance_mm) {
-      *converged = true;
-      break;
-    }
+    std::swap(*x, s->x_next);
   }
+  *converged = true;
+  for (int g = 0; g < ng; ++g) *converged = *converged && s->group_converged[g];
   return it;
 }
 

@@ -13,7 +13,9 @@
 //   E(x) = sum_i m_i [ (1 + alpha dt) |x_i - x0_i|^2 / (2 dt^2) - (x_i - x0_i).v0_i / dt
 //                      - g.(x_i - x0_i) ] + U(x),   v1 = (x1 - x0) / dt,
 // solved by Newton from x0 with an Armijo line search, so every iterate lowers E and a step cut
-// short by the iteration limit is still stable. Each Newton matrix is block-pentadiagonal per
+// short by the iteration limit is still stable. E is a sum over independent groups (threads not
+// joined by a contact or a multi-node term), and each group has its own active set, line-search
+// factor and convergence test. Each Newton matrix is block-pentadiagonal per
 // chain (inertia, stretch, bending, point contacts and springs) and is factored by a banded
 // block Cholesky in O(n); segment-segment contacts are rank-1 columns added by a Woodbury
 // capacitance matrix. Three things make Newton converge on a moving, nearly inextensible chain

@@ -63,7 +63,19 @@ struct ThreadScratch {
   int base_cols = 0;             ///< off-band columns of the springs (first in cols_*)
   std::vector<Vec3> sw_y, sw_g;  ///< switching terms at the iterate: y and true gradient wrt y
   std::vector<Mat3> sw_h;        ///< switching terms at the iterate: Hessian wrt y
-  std::vector<double> min_pivot, grad, rhs, step, step0;
+  std::vector<double> min_pivot, grad, rhs, step;
+  // Independent groups of the Newton solve (connected components of the coupling terms: a
+  // thread's chain, and threads joined by segment-segment contacts or multi-node terms). The
+  // energy is a sum over groups, so each group has its own active set and line search.
+  int num_groups = 0;
+  std::vector<int> node_group;     ///< group of each node (union-find parent while building)
+  std::vector<int> stretch_group;  ///< group of each stretch term
+  std::vector<int> switch_group;   ///< group of each switching term (contact plane, barrier)
+  std::vector<std::uint8_t> group_changed, group_consistent, group_done, group_converged,
+      group_pending;
+  std::vector<double> group_alpha, group_e0, group_e1, group_slope, group_step_max;
+  std::vector<double> step_kept;    ///< per group: the step of its last consistent pass, or pass 0
+  Points x_next;                    ///< the accepted iterate of every group
   std::vector<double> cols_node_w;  ///< off-band rank-1 columns: 4 weights each
   std::vector<int> cols_node;       ///< 4 nodes each
   std::vector<Vec3> cols_dir;       ///< direction * sqrt(k)
