@@ -6,6 +6,8 @@
 #include <fstream>
 
 #include "arthrosim/core/error.h"
+#include "arthrosim/core/scope_aim.h"
+#include "arthrosim/core/units.h"
 
 namespace arthrosim::io {
 namespace {
@@ -104,9 +106,13 @@ TEST_F(ScenarioLoaderTest, LoadsAValidScenario) {
   EXPECT_EQ(m.threads[0].fixed_nodes, std::vector<std::int32_t>{0});
   EXPECT_EQ(m.instruments[0].kind, InstrumentKind::kGrasper);
   EXPECT_EQ(m.FindLandmark("tip"), 0);
-  // The camera looks from (40,0,0) toward the origin: +z of its frame is -x of the world.
-  const Vec3 forward = m.camera.initial_pose.orientation * Vec3::UnitZ();
+  // The camera looks from (40,0,0) toward the origin: its oblique view (not its shaft, +z)
+  // points along -x of the world, the shaft lens_angle away from it.
+  const Vec3 forward = m.camera.initial_pose.orientation *
+                       ScopeViewDirectionLocal(m.camera.lens_angle_deg * units::kDegToRad);
   EXPECT_NEAR((forward - Vec3(-1, 0, 0)).norm(), 0, 1e-12);
+  EXPECT_NEAR((m.camera.initial_pose.orientation * Vec3::UnitZ()).dot(Vec3(-1, 0, 0)),
+              std::cos(m.camera.lens_angle_deg * units::kDegToRad), 1e-12);
   EXPECT_EQ(m.scenario_sha256.size(), 64u);
 }
 

@@ -84,7 +84,7 @@ TEST(Sight, TheSurfacesFollowTheFrame) {
   blockers.Update(s.model, s.state);
   EXPECT_TRUE(TipVisible(s.model, s.state.camera, behind_sphere, 1.0, blockers));
   EXPECT_TRUE(TipVisible(s.model, s.state.camera, behind_box, 1.0, blockers));
-  // and back: the refit tree hides again
+  // and back: the moved nodes hide it again
   for (Eigen::Index n = 0; n < s.state.soft_bodies[0].x.cols(); ++n)
     s.state.soft_bodies[0].x(2, n) -= 30;
   blockers.Update(s.model, s.state);

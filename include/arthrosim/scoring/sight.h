@@ -6,18 +6,19 @@
 #include <cstdint>
 #include <vector>
 
-#include "arthrosim/collision/collision_mesh.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
 
 namespace arthrosim::scoring {
 
-/// The tissue and bone surfaces of one frame with a box tree each, for segment queries.
+/// The tissue and bone surfaces of one frame, their triangles in chunks of consecutive ones with
+/// a box each (surface triangles come in spatially coherent order), for segment queries.
 class SightBlockers {
  public:
-  /// Takes the surfaces of `state` (its arrays in Model order). A soft body's tree is rebuilt
-  /// when its tets or their alive flags change and refit to the new node positions otherwise; a
-  /// bone's when its surface's revision or size changes (State::bones[i].revision contract).
+  /// Takes the surfaces of `state` (its arrays in Model order). A soft body's boundary is
+  /// extracted again when its tets or their alive flags change (else only its node positions and
+  /// boxes are refreshed); a bone's surface is taken again when its revision or size changes
+  /// (State::bones[i].revision contract).
   /// @throws std::invalid_argument if the state's body counts differ from the model's or a
   /// triangle or tet names a node the body lacks.
   void Update(const Model& model, const State& state);
@@ -28,17 +29,22 @@ class SightBlockers {
   bool Blocked(const Vec3& from, const Vec3& to, double skip_from_mm, double skip_to_mm) const;
 
  private:
+  /// An axis-aligned box, mm.
+  struct Box {
+    Vec3 lo, hi;
+  };
   struct Body {
-    std::vector<mesh::Tet> tets;  // soft: the topology the tree was built for
+    std::vector<mesh::Tet> tets;  // soft: the topology the triangles were taken from
     std::vector<std::uint8_t> alive;
-    std::uint64_t revision = 0;  // bone: the surface the tree was built for
+    std::uint64_t revision = 0;  // bone: the surface the triangles were taken from
     std::size_t nodes = 0, tris = 0;
     bool built = false;
-    std::vector<std::int32_t> node_ids;  // soft: state node of each tree vertex
-    std::vector<Vec3> vertices;          // tree vertices, mm
-    std::vector<mesh::Tri> triangles;    // in tree vertex indices
-    collision::TriangleBvh tree;
+    std::vector<Vec3> vertices;        // the body's nodes this frame, mm
+    std::vector<mesh::Tri> triangles;  // surface triangles, node indices
+    std::vector<Box> chunk_boxes;      // box of triangles [kChunk c, kChunk (c + 1))
   };
+  /// Refreshes a body's chunk boxes from its vertices.
+  static void FitChunks(Body* b);
   std::vector<Body> soft_, bones_;
 };
 
