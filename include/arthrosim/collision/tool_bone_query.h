@@ -26,6 +26,8 @@ struct BoneQueryWorld {
   std::vector<double> lower_bounds;      ///< scratch: per candidate a lower bound of its distance
   /// Exact core-triangle distance tests the queries did (a work counter for tests and benches).
   std::int64_t exact_tests = 0;
+  /// Candidate triangles ToolBoneClearance gathered (their lower bounds computed; a work counter).
+  std::int64_t gathered = 0;
 };
 
 /// Rebuilds the trees of bones whose surface changed (revision or size) since the last call.
