@@ -84,6 +84,11 @@ long ResidentKb() {
 // stored with H5Dwrite_chunk, run_series.h). The writer thread holds at most about one flush
 // interval of queued chunks (RunWriterOptions::max_flushes_behind), however fast this loop is.
 TEST(RunMemory, WriterMemoryDoesNotGrowWithFrames) {
+#if defined(__SANITIZE_ADDRESS__)
+  // ASan's quarantine keeps freed blocks resident (+5 MB per 2 000 frames here): RSS says
+  // nothing about the writer under it. The Release suite runs this check.
+  GTEST_SKIP() << "resident memory is not the writer's under AddressSanitizer";
+#endif
   Model model = MakeModel();
   model.options.flush_interval_s = 1.0;
   const std::string path = testing::TestDir("memory") + "/run.h5";
