@@ -32,10 +32,10 @@ struct SynthSpec {
   /// The camera looks at the same point from below the humerus: every awl tip position (on the
   /// site, above the bone's top face) is in its view cone but behind the bone.
   bool camera_below_bone = false;
-  double head_roll_rad = 0;         ///< camera-head roll (horizon)
-  bool awl_idle = false;            ///< the awl rests still for its whole insertion
-  bool burr_zigzag = false;         ///< the burr path zig-zags (3x longer)
-  double position_noise_mm = 0;     ///< added to the awl pose x at frame `noise_frame`
+  double head_roll_rad = 0;      ///< camera-head roll (horizon)
+  bool awl_idle = false;         ///< the awl rests still for its whole insertion
+  bool burr_zigzag = false;      ///< the burr path zig-zags (3x longer)
+  double position_noise_mm = 0;  ///< added to the awl pose x at frame `noise_frame`
   int noise_frame = -1;
   Vec3 tendon_shift_mm = Vec3::Zero();  ///< the tendon's nodes moved by this in every frame
   /// Nonzero: the tendon's tet is cut away and a second tet (nodes 1, 2, 3 and a new node 4)
