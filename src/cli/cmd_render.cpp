@@ -34,12 +34,9 @@ Model RunModel(const io::RunReader& reader, const std::string& run,
     }
     return m;
   }
-  if (!std::filesystem::exists(info.scenario_path)) {
-    throw InputError(run, 0, "/meta scenario_path",
-                     "the run's scenario '" + info.scenario_path +
-                         "' is not here (its meshes are needed); pass --scenario FILE");
-  }
-  return io::LoadScenarioFromText(info.scenario_yaml, info.scenario_path);
+  return io::LoadScenarioFromText(
+      info.scenario_yaml,
+      io::LocateRunScenario(run, info.scenario_path, info.scenario_path_absolute));
 }
 
 // The plan's steps with their times in `run` (scoring the run against the plan).

@@ -72,7 +72,9 @@ Model ModelOf(const io::RunCheckpoints& cp, const std::string& scenario) {
     }
   }
   // The exact text stored in the run; its meshes are read relative to its recorded path.
-  Model model = io::LoadScenarioFromText(cp.scenario_yaml(), cp.scenario_path());
+  Model model = io::LoadScenarioFromText(
+      cp.scenario_yaml(),
+      io::LocateRunScenario(cp.path(), cp.scenario_path(), cp.scenario_path_absolute()));
   if (model.scenario_sha256 != cp.scenario_sha256()) {
     throw InputError(cp.path(), 0, "meta/scenario_yaml",
                      "the stored scenario text does not match its recorded SHA-256: damaged file");

@@ -137,7 +137,7 @@ struct RunCheckpoints::Impl {
   std::vector<std::int64_t> offsets;
   RunOrigin origin;
   RunBuild build;
-  std::string scenario_yaml, scenario_path, scenario_sha256;
+  std::string scenario_yaml, scenario_path, scenario_path_absolute, scenario_sha256;
   double dt_s = 0;
 
   void Open();
@@ -153,6 +153,8 @@ void RunCheckpoints::Impl::Open() {
   build.arthrosim_version = root.AttrString("arthrosim_version");
   const h5::Group meta = root.OpenGroup(layout::kMeta);
   scenario_path = meta.AttrString("scenario_path");
+  if (meta.HasAttr("scenario_path_absolute"))
+    scenario_path_absolute = meta.AttrString("scenario_path_absolute");
   scenario_yaml = meta.OpenDataset("scenario_yaml").ReadString();
   build.compiler = meta.AttrString("compiler");
   build.cxx_flags = meta.AttrString("cxx_flags");
@@ -204,6 +206,9 @@ const RunOrigin& RunCheckpoints::origin() const { return impl_->origin; }
 const RunBuild& RunCheckpoints::build() const { return impl_->build; }
 const std::string& RunCheckpoints::scenario_yaml() const { return impl_->scenario_yaml; }
 const std::string& RunCheckpoints::scenario_path() const { return impl_->scenario_path; }
+const std::string& RunCheckpoints::scenario_path_absolute() const {
+  return impl_->scenario_path_absolute;
+}
 const std::string& RunCheckpoints::scenario_sha256() const { return impl_->scenario_sha256; }
 double RunCheckpoints::dt_s() const { return impl_->dt_s; }
 

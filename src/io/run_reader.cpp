@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <filesystem>
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
@@ -186,6 +187,20 @@ struct BoneIn {
 
 }  // namespace
 
+std::string LocateRunScenario(const std::string& run_path, const std::string& as_given,
+                              const std::string& absolute) {
+  std::error_code ec;
+  if (!as_given.empty() && std::filesystem::exists(as_given, ec)) return as_given;
+  if (!absolute.empty() && std::filesystem::exists(absolute, ec)) return absolute;
+  const std::string where = absolute.empty() || absolute == as_given
+                                ? "the run's scenario '" + as_given + "' is not here"
+                                : "neither the run's scenario as given, '" + as_given +
+                                      "', nor its recorded absolute path '" + absolute +
+                                      "' exists here";
+  throw InputError(run_path, 0, "/meta scenario_path",
+                   where + " (its meshes are needed); pass --scenario FILE");
+}
+
 struct RunReader::Impl {
   std::string path;
   h5::File file;
@@ -231,6 +246,8 @@ void RunReader::Impl::Open() {
   info.dt_s = root.AttrDouble("dt");
   const h5::Group meta = root.OpenGroup(layout::kMeta);
   info.scenario_path = meta.AttrString("scenario_path");
+  if (meta.HasAttr("scenario_path_absolute"))
+    info.scenario_path_absolute = meta.AttrString("scenario_path_absolute");
   info.scenario_yaml = meta.OpenDataset("scenario_yaml").ReadString();
 
   auto frame = [&](h5::Dataset& d) { per_frame.push_back(&d); };

@@ -1,5 +1,6 @@
 #include <cstdint>
 #include <ctime>
+#include <filesystem>
 #include <limits>
 #include <string>
 
@@ -27,6 +28,15 @@ std::string UtcNow() {
   char buf[32];
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
+}
+
+/// The scenario's path made absolute (so that a run read from another directory still finds its
+/// meshes); the path as given when it cannot be made absolute or is empty (synthetic models).
+std::string AbsoluteScenarioPath(const std::string& as_given) {
+  if (as_given.empty()) return as_given;
+  std::error_code ec;
+  const std::filesystem::path abs = std::filesystem::absolute(as_given, ec);
+  return ec ? as_given : abs.lexically_normal().string();
 }
 
 }  // namespace
@@ -59,6 +69,7 @@ void RunWriter::Impl::CreateRoot(const Model& model, const State& initial) {
   h5::Group meta = root.CreateGroup(layout::kMeta);
   meta.CreateStringDataset("scenario_yaml", model.scenario_text);
   meta.SetAttr("scenario_path", model.scenario_path);
+  meta.SetAttr("scenario_path_absolute", AbsoluteScenarioPath(model.scenario_path));
   meta.SetAttr("compiler", ARTHROSIM_IO_COMPILER);
   meta.SetAttr("cxx_flags", ARTHROSIM_IO_CXX_FLAGS);
   meta.SetAttr("build_type", ARTHROSIM_IO_BUILD_TYPE);

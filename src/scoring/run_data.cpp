@@ -94,11 +94,9 @@ Model LoadRunModel(const std::string& run_path, const std::string& scenario_over
   if (!scenario_override.empty()) return io::LoadScenario(scenario_override);
   io::RunReader reader(run_path);
   const io::RunInfo& info = reader.info();
-  if (!std::filesystem::exists(info.scenario_path))
-    throw InputError(run_path, 0, "/meta scenario_path",
-                     "the run's scenario '" + info.scenario_path +
-                         "' is not here (its meshes are needed); pass --scenario FILE");
-  return io::LoadScenarioFromText(info.scenario_yaml, info.scenario_path);
+  return io::LoadScenarioFromText(
+      info.scenario_yaml,
+      io::LocateRunScenario(run_path, info.scenario_path, info.scenario_path_absolute));
 }
 
 RunData ReadRunData(const std::string& run_path, Model model) {

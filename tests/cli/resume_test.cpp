@@ -286,6 +286,42 @@ TEST_F(ResumeTest, FromAtContinuesFromTheCheckpointAtOrBeforeT) {
   EXPECT_EQ(short_cp.entries().back().state_hash, start.state_hash);
 }
 
+// A run started with a relative scenario path can be continued, scored and rendered from
+// another directory: the run file records the scenario's absolute path too, and its meshes are
+// read relative to it when the path as given does not exist from there.
+TEST_F(ResumeTest, FromAtWorksFromAnotherDirectory) {
+  fs::create_directories(dir_ / "scenes");
+  for (const char* f : {"small_resume.yaml", "small_push.yaml", "block.vtk", "bone.obj"})
+    fs::copy_file(kScenes + "/" + f, dir_ / "scenes" / f);
+  fs::create_directories(dir_ / "elsewhere");
+  const std::string in_dir = "cd " + dir_.string() + " && ";
+  const std::string in_elsewhere = "cd " + (dir_ / "elsewhere").string() + " && ";
+  ASSERT_EQ(Exec("run scenes/small_resume.yaml --trajectory scenes/small_push.yaml --steps 30 "
+                 "--quiet --out full.h5",
+                 in_dir)
+                .exit_code,
+            0);
+  const RunCheckpoints full_cp(P("full.h5"));
+  EXPECT_EQ(full_cp.scenario_path(), "scenes/small_resume.yaml");
+  EXPECT_EQ(full_cp.scenario_path_absolute(), P("scenes/small_resume.yaml"));
+
+  const Result from =
+      Exec("run --from ../full.h5 --at 0.3 --steps 10 --quiet --out from.h5", in_elsewhere);
+  ASSERT_EQ(from.exit_code, 0) << from.output;
+  EXPECT_EQ(arthrosim::io::RunReader(P("elsewhere/from.h5")).step(0), 15);
+  const Result frame =
+      Exec("render ../full.h5 --frames frames --to 0.02 --size 64x48", in_elsewhere);
+  EXPECT_EQ(frame.exit_code, 0) << frame.output;
+
+  // Neither the path as given nor the recorded one exists: a clear error naming both.
+  fs::rename(dir_ / "scenes", dir_ / "moved");
+  const Result gone =
+      Exec("run --from ../full.h5 --at 0.3 --steps 10 --quiet --out gone.h5", in_elsewhere);
+  EXPECT_EQ(gone.exit_code, 2) << gone.output;
+  EXPECT_NE(gone.output.find("/meta scenario_path"), std::string::npos) << gone.output;
+  EXPECT_NE(gone.output.find(P("scenes/small_resume.yaml")), std::string::npos) << gone.output;
+}
+
 }  // namespace
 
 // The shoulder scene with the burr carving the acromion (bone surfaces and their collision

@@ -46,6 +46,8 @@ class RunCheckpoints {
   /// The exact scenario text, its path as given and its SHA-256 (/meta, root attribute).
   const std::string& scenario_yaml() const;
   const std::string& scenario_path() const;
+  /// The scenario's path made absolute when the run was written ("" in older files).
+  const std::string& scenario_path_absolute() const;
   const std::string& scenario_sha256() const;
   double dt_s() const;
 

@@ -16,12 +16,21 @@ namespace arthrosim::io {
 struct RunInfo {
   std::string scenario_name;
   std::string scenario_sha256;
-  std::string scenario_path;
-  std::string scenario_yaml;  ///< exact scenario text (to rebuild the Model)
+  std::string scenario_path;           ///< as given to `run`
+  std::string scenario_path_absolute;  ///< made absolute when written ("" in older files)
+  std::string scenario_yaml;           ///< exact scenario text (to rebuild the Model)
   std::string arthrosim_version;
   double dt_s = 0;
   std::vector<std::string> soft_bodies, bones, threads, instruments;  ///< names, Model order
 };
+
+/// The scenario file whose directory the run's meshes are read relative to: the path as given to
+/// `run` if it exists from the working directory, else the absolute path recorded when the run
+/// was written (so `render`, `score` and `run --from` work from any directory).
+/// @throws InputError (file = run_path, field "/meta scenario_path") if neither exists, naming
+/// both and the remedy (--scenario FILE).
+std::string LocateRunScenario(const std::string& run_path, const std::string& as_given,
+                              const std::string& absolute);
 
 class RunReader {
  public:
