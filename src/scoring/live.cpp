@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "arthrosim/io/run_reader.h"
+#include "arthrosim/scoring/sight.h"
 #include "progress.h"
 
 namespace arthrosim::scoring {
@@ -27,6 +28,7 @@ struct LiveEvaluator::Impl {
   LiveOptions options;
   std::vector<std::vector<CriterionProgress>> criteria;  // [step][criterion]
   std::vector<ProtectedProgress> structures;             // plan.protected_structures order
+  SightBlockers blockers;  // the frame's surfaces for in_view criteria (taken when needed)
   std::vector<std::uint8_t> contact_time_warned;
   double outside_mm3 = 0;
   std::int64_t events_seen = 0;
@@ -142,6 +144,7 @@ struct LiveEvaluator::Impl {
   }
 
   void ObserveFrame(const State& s) {
+    FrameSight sight(model, s, &blockers);
     for (std::size_t i = 0; i < plan.steps.size(); ++i) {
       for (std::size_t j = 0; j < plan.steps[i].complete.size(); ++j) {
         const Criterion& c = plan.steps[i].complete[j];
@@ -149,7 +152,9 @@ struct LiveEvaluator::Impl {
         const double removed = b >= 0 && b < static_cast<int>(s.bones.size())
                                    ? s.bones[static_cast<std::size_t>(b)].removed_volume_mm3
                                    : 0.0;
-        criteria[i][j].OnFrame(model, s.time_s, s.camera, removed);
+        const bool seen = c.kind == Criterion::Kind::kInView && !criteria[i][j].met() &&
+                          sight.SeesLandmark(model.FindLandmark(c.landmark));
+        criteria[i][j].OnFrame(s.time_s, seen, removed);
       }
     }
   }

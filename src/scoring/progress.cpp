@@ -78,8 +78,7 @@ void CriterionProgress::OnEvent(const Model& model, const Event& e, std::int64_t
   if (++matched_ == c_->count) met_s_ = e.time_s;
 }
 
-void CriterionProgress::OnFrame(const Model& model, double t_s, const CameraState& camera,
-                                double bone_removed_mm3) {
+void CriterionProgress::OnFrame(double t_s, bool landmark_seen, double bone_removed_mm3) {
   const bool first = !have_frame_;
   const double dt_s = first ? 0.0 : t_s - prev_t_s_;
   have_frame_ = true;
@@ -91,8 +90,7 @@ void CriterionProgress::OnFrame(const Model& model, double t_s, const CameraStat
     return;
   }
   if (c_->kind != Criterion::Kind::kInView || met()) return;
-  const int l = model.FindLandmark(c_->landmark);
-  if (l < 0 || !PointInView(model, camera, model.landmarks[l].position_mm)) return;
+  if (!landmark_seen) return;
   if (std::isnan(first_seen_s_)) first_seen_s_ = t_s;
   if (!first) seen_s_ += dt_s;
   if (seen_s_ >= c_->min_time_s) met_s_ = t_s;

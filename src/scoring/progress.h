@@ -42,9 +42,10 @@ class CriterionProgress {
 
   /// One event, in run order; `index` is its position in the run's event list.
   void OnEvent(const Model& model, const Event& e, std::int64_t index);
-  /// One frame at time t_s (s, increasing): the scope pose and the removed volume (mm3) of the
-  /// criterion's bone (ignored by other kinds).
-  void OnFrame(const Model& model, double t_s, const CameraState& camera, double bone_removed_mm3);
+  /// One frame at time t_s (s, increasing): whether the scope sees the criterion's landmark
+  /// (FrameSight::SeesLandmark; in_view criteria) and the removed volume (mm3) of the
+  /// criterion's bone (bone_removed criteria); each ignored by the other kinds.
+  void OnFrame(double t_s, bool landmark_seen, double bone_removed_mm3);
 
   bool met() const { return !std::isnan(met_s_); }
   /// When the criterion was met, s (NaN if not yet).

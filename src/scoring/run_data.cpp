@@ -39,22 +39,18 @@ void CheckMatches(const std::string& path, const io::RunInfo& info, const Model&
           "instrument differs from the scenario's '" + model.instruments[i].name + "'");
 }
 
-// Which inserted instruments' tips the scope sees in this frame (`blockers` updated only when
-// some tip is in the view cone: most frames need no surface at all).
-void AppendTipVisibility(const State& s, SightBlockers* blockers, RunData* d) {
-  bool updated = false;
+// Which inserted instruments' tips and which landmarks the scope sees in this frame.
+void AppendSight(const State& s, SightBlockers* blockers, RunData* d) {
+  FrameSight sight(d->model, s, blockers);
   for (int slot = 0; slot < kToolSlots; ++slot) {
     const ToolState& t = s.tools[slot];
     if (t.instrument < 0 || t.instrument >= static_cast<int>(d->instruments.size())) continue;
-    const Vec3& tip = t.pose.position_mm;
-    if (!PointInView(d->model, s.camera, tip)) continue;
-    if (!updated) blockers->Update(d->model, s);
-    updated = true;
     const double margin =
         d->model.instruments[static_cast<std::size_t>(t.instrument)].tip_radius_mm;
-    d->instruments[t.instrument].tip_visible.back() =
-        TipVisible(d->model, s.camera, tip, margin, *blockers) ? 1 : 0;
+    d->instruments[t.instrument].tip_visible.back() = sight.Sees(t.pose.position_mm, margin);
   }
+  for (std::size_t l = 0; l < d->landmark_visible.size(); ++l)
+    d->landmark_visible[l].push_back(sight.SeesLandmark(static_cast<int>(l)));
 }
 
 void AppendFrame(const State& s, RunData* d) {
@@ -108,6 +104,7 @@ RunData ReadRunData(const std::string& run_path, Model model) {
   for (const InstrumentModel& im : d.model.instruments)
     d.instruments.push_back({im.name, InstrumentKindName(im.kind), {}, {}, {}, {}, {}});
   d.bone_removed_mm3.resize(d.model.bones.size());
+  d.landmark_visible.resize(d.model.landmarks.size());
   const std::int64_t frames = reader.frame_count();
   if (frames == 0) throw InputError(run_path, 0, "/time", "the run holds no frame");
   State s;
@@ -115,7 +112,7 @@ RunData ReadRunData(const std::string& run_path, Model model) {
   for (std::int64_t k = 0; k < frames; ++k) {
     reader.ReadFrame(k, s);
     AppendFrame(s, &d);
-    AppendTipVisibility(s, &blockers, &d);
+    AppendSight(s, &blockers, &d);
   }
   d.last = std::move(s);
   d.events = reader.EventsUpTo(frames - 1);

@@ -154,4 +154,17 @@ bool TipVisible(const Model& model, const CameraState& camera, const Vec3& tip_m
   return !blockers.Blocked(camera.pose.position_mm, tip_mm, model.camera.near_mm, tip_margin_mm);
 }
 
+bool FrameSight::Sees(const Vec3& point_mm, double margin_mm) {
+  if (!PointInView(*model_, state_->camera, point_mm)) return false;
+  if (!updated_) blockers_->Update(*model_, *state_);
+  updated_ = true;
+  return TipVisible(*model_, state_->camera, point_mm, margin_mm, *blockers_);
+}
+
+bool FrameSight::SeesLandmark(int index) {
+  if (index < 0 || index >= static_cast<int>(model_->landmarks.size())) return false;
+  return Sees(model_->landmarks[static_cast<std::size_t>(index)].position_mm,
+              kLandmarkSightMarginMm);
+}
+
 }  // namespace arthrosim::scoring

@@ -65,7 +65,7 @@ CriterionOutcome BoneCriterion(const PlanStep& step, const Criterion& c, const R
   const int b = run.model.FindBone(c.bone);
   CriterionProgress progress(step, c);
   for (std::int64_t k = 0; k < run.frames() && !progress.met(); ++k)
-    progress.OnFrame(run.model, run.time_s[k], run.camera[k], run.bone_removed_mm3[b][k]);
+    progress.OnFrame(run.time_s[k], false, run.bone_removed_mm3[b][k]);
   CriterionOutcome out;
   if (progress.met()) {
     out.time_s = progress.met_s();
@@ -126,8 +126,13 @@ CriterionOutcome DistanceCriterion(const PlanStep& step, const Criterion& c, con
 CriterionOutcome InViewCriterion(const PlanStep& step, const Criterion& c, const RunData& run,
                                  double* first_seen) {
   CriterionProgress progress(step, c);
-  for (std::int64_t k = 0; k < run.frames() && !progress.met(); ++k)
-    progress.OnFrame(run.model, run.time_s[k], run.camera[k], 0.0);
+  const int l = run.model.FindLandmark(c.landmark);
+  for (std::int64_t k = 0; k < run.frames() && !progress.met(); ++k) {
+    const bool seen =
+        l >= 0 &&
+        run.landmark_visible[static_cast<std::size_t>(l)][static_cast<std::size_t>(k)] != 0;
+    progress.OnFrame(run.time_s[k], seen, 0.0);
+  }
   if (std::isnan(*first_seen)) *first_seen = progress.first_seen_s();
   CriterionOutcome out;
   if (progress.met()) {

@@ -337,6 +337,28 @@ TEST(Score, ATipBehindBoneIsNotInView) {
   EXPECT_LE(Find(s.report, "camera.tip_in_view").value, 0.5 + 1e-12);
 }
 
+// The `look` step's in_view criterion counts only frames in which the scope sees its landmark:
+// from below the bone the landmark (5 mm above the bone's top face) is in the view cone in every
+// frame but hidden, so the step is never done (with the cone alone it was done at 0.2 s).
+TEST(Score, ALandmarkBehindBoneIsNotInView) {
+  SynthSpec spec;
+  spec.camera_below_bone = true;
+  const Scored s = ScoreSynth("landmark_below_bone", spec);
+  const int view = s.run.model.FindLandmark("view");
+  ASSERT_GE(view, 0);
+  for (std::int64_t k = 0; k < s.run.frames(); ++k) {
+    EXPECT_TRUE(PointInView(s.run.model, s.run.camera[k],
+                            s.run.model.landmarks[static_cast<std::size_t>(view)].position_mm));
+    EXPECT_EQ(s.run.landmark_visible[static_cast<std::size_t>(view)][k], 0) << k;
+  }
+  EXPECT_FALSE(Step(s.report, "look").completed);
+  EXPECT_NE(Step(s.report, "look").reason.find("view in view for 0.0 s"), std::string::npos)
+      << Step(s.report, "look").reason;
+  // Seen from above, the same landmark is seen in every frame and the step is done.
+  const Scored above = ScoreSynth("landmark_above_bone", {});
+  EXPECT_TRUE(Step(above.report, "look").passed) << Step(above.report, "look").reason;
+}
+
 TEST(Score, RolledCameraHeadDeviatesFromTheHorizon) {
   SynthSpec spec;
   spec.head_roll_rad = std::numbers::pi / 2;

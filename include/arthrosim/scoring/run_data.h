@@ -35,8 +35,11 @@ struct RunData {
   std::vector<CameraState> camera;                    ///< per frame
   std::vector<std::vector<double>> bone_removed_mm3;  ///< [bone][frame]
   std::vector<std::vector<ToolContact>> contacts;     ///< per frame
-  std::vector<Event> events;                          ///< every event, in order
-  State last;                                         ///< the last frame
+  /// [landmark][frame] (Model::landmarks order): 1 when the scope sees the landmark, in the view
+  /// cone and not hidden behind that frame's tissue or bone (FrameSight::SeesLandmark).
+  std::vector<std::vector<std::uint8_t>> landmark_visible;
+  std::vector<Event> events;  ///< every event, in order
+  State last;                 ///< the last frame
   bool video_beside = false;  ///< a .mp4 with the run's stem sits next to it
   std::string video_path;
 

@@ -56,4 +56,29 @@ class SightBlockers {
 bool TipVisible(const Model& model, const CameraState& camera, const Vec3& tip_mm,
                 double tip_margin_mm, const SightBlockers& blockers);
 
+/// How far inside or behind its surface a landmark may lie and still count as seen, mm: landmarks
+/// on tissue sit up to half a tendon's thickness (2.5 mm) inside it, so the surface over them
+/// must not hide them.
+inline constexpr double kLandmarkSightMarginMm = 3.0;
+
+/// One frame's sight queries. The frame's surfaces are taken into `blockers` at the first query
+/// whose point is inside the view cone (most frames need none) and reused by the later ones.
+/// `model`, `state` and `blockers` must outlive it.
+class FrameSight {
+ public:
+  FrameSight(const Model& model, const State& state, SightBlockers* blockers)
+      : model_(&model), state_(&state), blockers_(blockers) {}
+  /// TipVisible for `point_mm` in this frame, crossings within `margin_mm` of the point ignored.
+  bool Sees(const Vec3& point_mm, double margin_mm);
+  /// Whether landmark `index` (Model::landmarks) is seen: Sees(its position,
+  /// kLandmarkSightMarginMm); false for an index out of range.
+  bool SeesLandmark(int index);
+
+ private:
+  const Model* model_;
+  const State* state_;
+  SightBlockers* blockers_;
+  bool updated_ = false;
+};
+
 }  // namespace arthrosim::scoring
