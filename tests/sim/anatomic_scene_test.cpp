@@ -2,7 +2,8 @@
 // its meshes are valid closed surfaces with the physical groups scoring and rendering need, every
 // landmark lies on (bone) or in (soft tissue) the body it names, and the first 10.4 s of the tour
 // (diagnostic view, subacromial view, burr onto the spur) run on it with the scope outside bone
-// and no soft-body node pushed into bone.
+// and no soft-body node pushed into bone; the subacromial bursa lies between the acromion and the
+// tendon without penetrating either, stays there at rest, and a shaver pass removes its volume.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -21,7 +21,7 @@ PERTURBATIONS = [
     ("RETROVERSION_DEG=12", "retroversion_deg"),
     ("HEAD_HALF_ARC_DEG=70", "head_thickness_mm"),
     ("LABRUM_H=6", "labrum_height_mm"),
-    ("BURSA_T=2.5", "bursa_thickness_mm"),
+    ("BURSA_T=0.4", "bursa_thickness_mm"),
 ]
 
 
