@@ -697,6 +697,8 @@ def files(bodies, points):
         % RETROVERSION_DEG,
         "bicipital groove; acromion with a curved undersurface and anterior hook, 10 mm above the",
         "head; glenoid with labrum, supraglenoid tubercle and coracoid; coracoacromial ligament;",
+        "cartilage and labrum are tissues of their own (drawn as such; burring them is collateral",
+        "damage); a subacromial bursa (soft, 1.6 mm) between the acromion and the tendon;",
         "supraspinatus muscle and tendon with a conforming interface; full-thickness tear, tendon edge"]
     extra = [
         "  # Glenoid, labrum (group, a tissue of its own), supraglenoid tubercle and coracoid: one",
