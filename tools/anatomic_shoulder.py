@@ -23,6 +23,7 @@ import math
 import gmsh
 import numpy as np
 
+import anatomic_bursa as bursa
 import gen_anatomy as base
 
 # ----------------------------------------------------------------------------------------------
@@ -91,12 +92,13 @@ RANGES = {
     "glenoid_height_mm": (32.6, 37.5),          # Churchill 2001 (women-men means)
     "glenoid_width_mm": (23.6, 27.8),           # Churchill 2001
     "labrum_height_mm": (2.0, 5.0),             # Howell & Galinat 1989: doubles the depth
-    "acromion_thickness_mm": (6.0, 9.0),        # Nicholson 1996: ~7-8
-    "acromion_width_mm": (19.0, 31.0),          # Nicholson 1996 / Edelson 1993
+    "acromion_thickness_mm": (6.0, 9.0),        # Nicholson 1996: means 6.7 (F), 7.7 (M)
+    "acromion_width_mm": (19.0, 31.0),          # not cited: Nicholson 1996 means 18.4-19.5
     "acromiohumeral_mm": (9.0, 10.5),           # Petersson 1984: 9-10 normal
     "hook_drop_mm": (2.0, 6.0),                 # Bigliani 1986 type III: anterior hook
-    "cal_length_mm": (25.0, 40.0),              # Kesmezacar 2008 / Holt 1995
-    "biceps_diameter_mm": (5.0, 6.0),           # LHB diameter ~5-6 mm
+    "cal_length_mm": (25.0, 40.0),              # BioMed Res Int 2019: 34.9 +- 4.6 (lateral)
+    "biceps_diameter_mm": (5.0, 6.0),           # not cited (LHB ~5-6 mm)
+    "bursa_thickness_mm": (0.5, 2.0),           # Tsai 2007: normally < 2 mm on ultrasound
 }
 
 
@@ -294,6 +296,7 @@ def build_meshes():
     base.background_size("%r" % H_BICEPS)
     gmsh.model.mesh.generate(3)
     out["biceps_tendon"] = base.compact(base.elements_of(3, vol, 4), base.node_table())
+    out[bursa.NAME] = bursa.mesh()
     return out
 
 
@@ -436,6 +439,9 @@ def measure(bodies, biceps_samples):
     vol = float(base.tet_volumes(bodies["biceps_tendon"]["xyz"],
                                  bodies["biceps_tendon"]["tets"]).sum())
     M["biceps_diameter_mm"] = 2.0 * math.sqrt(vol / length / math.pi)
+    # Subacromial bursa: radial extent of its shell about the head centre.
+    rb = np.linalg.norm(bodies[bursa.NAME]["xyz"], axis=1)
+    M["bursa_thickness_mm"] = float(rb.max() - rb.min())
     return M
 
 
@@ -468,7 +474,7 @@ def groove_size(xyz, centreline):
 # Scene: build, verify, files
 # ----------------------------------------------------------------------------------------------
 RIGID = ("humerus", "acromion", "glenoid", "coracoacromial_ligament")
-SOFT = ("supraspinatus_muscle", "supraspinatus_tendon", "biceps_tendon")
+SOFT = ("supraspinatus_muscle", "supraspinatus_tendon", "biceps_tendon", bursa.NAME)
 MESH_DIR = "meshes/anatomic"
 
 
@@ -481,10 +487,12 @@ def anatomy_points():
     P["glenoid_center"] = c
     tip = np.array(CORACOID_PATH[-1])
     P["coracoid_tip"] = tip + CORACOID_R * unit(tip - np.array(CORACOID_PATH[-2]))
+    P["bursa_center"] = np.array(bursa.center())
     return P, samples
 
 
-LANDMARK_BODY = dict(base.LANDMARK_BODY, glenoid_center="glenoid", coracoid_tip="glenoid")
+LANDMARK_BODY = dict(base.LANDMARK_BODY, glenoid_center="glenoid", coracoid_tip="glenoid",
+                     bursa_center=bursa.NAME)
 
 
 def region_boxes():
@@ -493,6 +501,7 @@ def region_boxes():
     e = 0.01
     R["biceps_ends_proximal"] = ("biceps_tendon", ((-30.0, BICEPS_Y0 - 1.0, 5.0),
                                                    (-15.0, BICEPS_Y0 + e, 25.0)))
+    R.update(bursa.region_boxes())
     return R
 
 
@@ -611,9 +620,9 @@ def verify(bodies, points, samples, log):
     for rname, (body, box) in region_boxes().items():
         sel = base.in_box(B[body]["xyz"], box)
         base.require(sel.sum() > 0, "region %s is empty" % rname)
-        if rname in ("tendon_edge", "muscle_medial_end"):
+        if rname in ("tendon_edge", "muscle_medial_end", "bursa_medial"):
             base.require(np.ptp(B[body]["xyz"][sel][:, 0]) < 1e-9, "%s not one end face" % rname)
-        if rname == "biceps_ends_proximal":
+        if rname in ("biceps_ends_proximal", "bursa_anterior", "bursa_posterior"):
             base.require(np.ptp(B[body]["xyz"][sel][:, 1]) < 1e-9, "%s not one end face" % rname)
         if rname == "biceps_ends_distal":
             base.require(np.ptp(B[body]["xyz"][sel][:, 2]) < 1e-9, "%s not one end face" % rname)
@@ -688,10 +697,14 @@ def files(bodies, points):
         % RETROVERSION_DEG,
         "bicipital groove; acromion with a curved undersurface and anterior hook, 10 mm above the",
         "head; glenoid with labrum, supraglenoid tubercle and coracoid; coracoacromial ligament;",
+        "cartilage and labrum are tissues of their own (drawn as such; burring them is collateral",
+        "damage); a subacromial bursa (soft, 1.6 mm) between the acromion and the tendon;",
         "supraspinatus muscle and tendon with a conforming interface; full-thickness tear, tendon edge"]
     extra = [
-        "  # Glenoid, labrum (group), supraglenoid tubercle and coracoid: one rigid body.",
-        "  - {name: glenoid, kind: rigid, mesh: %s/glenoid.msh, hardness: 3}" % MESH_DIR,
+        "  # Glenoid, labrum (group, a tissue of its own), supraglenoid tubercle and coracoid: one",
+        "  # rigid body.",
+        "  - {name: glenoid, kind: rigid, mesh: %s/glenoid.msh, hardness: 3, tissues: [labrum]}"
+        % MESH_DIR,
         "  # Coracoacromial ligament: a rigid band [K: rigid to keep the FEM cost unchanged].",
         "  - {name: coracoacromial_ligament, kind: rigid, mesh: %s/coracoacromial_ligament.msh,"
         % MESH_DIR,
@@ -700,7 +713,8 @@ def files(bodies, points):
         "rotator_cuff_repair_anatomic", 5.0, points, True,
         "arthroscopic repair of a retracted full-thickness supraspinatus tear, anatomic shoulder",
         [], anchored_sutures=True, mesh_dir=MESH_DIR, anatomy_header=header, extra_bodies=extra,
-        regions=region_boxes(), landmark_body=LANDMARK_BODY)
+        regions=region_boxes(), landmark_body=LANDMARK_BODY, humerus_tissues=("cartilage",),
+        extra_materials=bursa.MATERIAL, extra_soft_bodies=bursa.body_lines(MESH_DIR))
     text = text.replace(
         "# Long head of biceps from the supraglenoid region over the front of the head into the",
         "# Long head of biceps from the supraglenoid tubercle in front of the supraspinatus into the")

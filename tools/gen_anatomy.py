@@ -471,10 +471,13 @@ def suture_lines(points, nodes=SUTURE_NODES_BENCH):
 
 def scenario_text(name, duration, points, with_biceps, title, extra_header, anchored_sutures,
                   mesh_dir="meshes", anatomy_header=None, extra_bodies=(), regions=None,
-                  landmark_body=None):
+                  landmark_body=None, humerus_tissues=(), extra_materials=(),
+                  extra_soft_bodies=()):
     """The scenario YAML (docs/scenario-format.md). The keyword arguments describe the anatomic
     variant (tools/anatomic_shoulder.py): its mesh folder, header lines, extra rigid bodies
-    (YAML lines), region boxes and landmark bodies; the defaults give the primitive scene."""
+    (YAML lines), region boxes, landmark bodies, the humerus's own tissues (surface groups),
+    extra materials and soft bodies (YAML lines, after the biceps); the defaults give the
+    primitive scene."""
     regions = region_boxes() if regions is None else regions
     landmark_body = LANDMARK_BODY if landmark_body is None else landmark_body
     L = []
@@ -523,9 +526,15 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("  # On these meshes the modulus barely changes the CG cost (scenarios/README.md, Materials).")
     w("  tendon: {young_modulus: 60000000, poisson_ratio: 0.45, density: 1100,")
     w("           rayleigh_mass: 0.1, rayleigh_stiffness: 0.001}")
+    for line in extra_materials:
+        w(line)
     w("")
     w("bodies:")
-    w("  - {name: humerus, kind: rigid, mesh: %s/humerus.msh, hardness: 1}" % mesh_dir)
+    if humerus_tissues:
+        w("  # Articular cartilage: the mesh's triangle group, a tissue of its own (drawn as")
+        w("  # cartilage; burring it is collateral damage, docs/operations.md, Bone).")
+    w("  - {name: humerus, kind: rigid, mesh: %s/humerus.msh, hardness: 1%s}" % (
+        mesh_dir, ", tissues: [%s]" % ", ".join(humerus_tissues) if humerus_tissues else ""))
     w("  # Acromion: denser cortical bone than the sparse greater-tuberosity footprint (BV/TV")
     w("  # 0.02-0.04, Kirchhoff 2012), so burr removal is slower [K: divisor chosen, not measured].")
     w("  - {name: acromion, kind: rigid, mesh: %s/acromion.msh, hardness: 3}" % mesh_dir)
@@ -538,6 +547,8 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     if with_biceps:
         w("  - {name: biceps_tendon, kind: soft, mesh: %s/biceps_tendon.msh, material: tendon," % mesh_dir)
         w("     fixed: [biceps_ends_proximal, biceps_ends_distal]}")
+    for line in extra_soft_bodies:
+        w(line)
     if anchored_sutures:
         w("  # Two limbs of a double-loaded anchor, running out toward the lateral portal. They belong to")
         w("  # the anchor (operations.anchor.sutures below): out of the scene until the awl seats it,")
@@ -800,21 +811,24 @@ def main():
     ap.add_argument("--check", action="store_true", help="build and verify only, write nothing")
     ap.add_argument("--quiet", action="store_true")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="override a parameter of tools/anatomic_shoulder.py (a number), e.g. "
+                    help="override a parameter of tools/anatomic_shoulder.py or "
+                    "tools/anatomic_bursa.py (a number), e.g. "
                     "NECK_SHAFT_DEG=128: shows that the dimension checks catch it")
     args = ap.parse_args()
     log = (lambda *_: None) if args.quiet else print
     # tools/anatomic_shoulder.py imports this file as gen_anatomy: share one module instance.
     sys.modules.setdefault("gen_anatomy", sys.modules[__name__])
+    import anatomic_bursa
     import anatomic_shoulder
     for item in args.set:
         key, _, value = item.partition("=")
-        if not hasattr(anatomic_shoulder, key) or not isinstance(getattr(anatomic_shoulder, key),
-                                                                 float):
-            print("gen_anatomy: --set %s: not a numeric parameter of anatomic_shoulder.py" % key,
-                  file=sys.stderr)
+        owner = [m for m in (anatomic_shoulder, anatomic_bursa)
+                 if isinstance(getattr(m, key, None), float)]
+        if not owner:
+            print("gen_anatomy: --set %s: not a numeric parameter of anatomic_shoulder.py or "
+                  "anatomic_bursa.py" % key, file=sys.stderr)
             return 2
-        setattr(anatomic_shoulder, key, float(value))
+        setattr(owner[0], key, float(value))
     try:
         bodies, points = build(log)
         verify(bodies, points, log)

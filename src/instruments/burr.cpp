@@ -6,6 +6,7 @@
 #include <string>
 
 #include "arthrosim/collision/instrument_shape.h"
+#include "arthrosim/mesh/surface_tissue.h"
 #include "arthrosim/physics/bone_surface.h"
 #include "bone_contact.h"
 #include "operations.h"
@@ -82,8 +83,14 @@ void BurrOperation(const Model& model, int slot, const StepContext& /*context*/,
     removed += physics::SmoothRim(&bone, at, radius, radius + opt.smoothing_ring_mm);
     if (removed <= 0) continue;
     BookByRegion(model, static_cast<int>(b), touch.center_mm, removed, &bone);
-    RecordEvent(model, slot, "burr", model.bones[b].name,
-                Detail(removed, depth_mm, touch.triangles), touch.center_mm, state);
+    // On a tissue of the bone's own (articular cartilage, labrum): collateral damage, named in
+    // the event (plans protect it with `protected: [{tissue: ...}]`, docs/plan-format.md).
+    std::string detail = Detail(removed, depth_mm, touch.triangles);
+    const BoneModel& bm = model.bones[b];
+    const std::int8_t tissue = mesh::TissueNear(bm.surface, bm.tri_tissue, touch.center_mm);
+    if (tissue != mesh::kBoneTissue)
+      detail += " tissue=" + bm.tissues[static_cast<std::size_t>(tissue)];
+    RecordEvent(model, slot, "burr", bm.name, detail, touch.center_mm, state);
   }
 }
 

@@ -60,7 +60,8 @@ void ShaveWith(const Model& model, int slot, collision::ToolPart part,
   collision::ToolPrimitivesWorld(model, tool, &prims);
   const collision::ToolPrimitive* tip = FindPart(prims, part);
   if (tip == nullptr) return;
-  // Table 1: shaver and electrocautery act on muscle and tendon, i.e. the soft bodies.
+  // Table 1: shaver and electrocautery act on muscle and tendon, i.e. the soft bodies (the
+  // anatomic scene's subacromial bursa is one: they debride it as they do muscle and tendon).
   for (std::size_t b = 0; b < state->soft_bodies.size(); ++b) {
     const ShaveResult r = ShaveBody(model, slot, static_cast<int>(b), tip->core, tip->radius_mm,
                                     opt, cauterize, context, state, scratch);

@@ -22,6 +22,8 @@
 #include "arthrosim/core/yaml_fields.h"
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/mesh/mesh_validate.h"
+#include "arthrosim/mesh/surface.h"
+#include "arthrosim/mesh/surface_tissue.h"
 #include "scenario_operations.h"
 #include "scenario_ranges.h"
 
@@ -300,6 +302,44 @@ void ReadThreadBlock(const YamlSection& body, ThreadModel* t) {
                        t->fixed_nodes.end());
 }
 
+// A rigid body's `tissues:` list: names of triangle groups of its mesh file that are a tissue
+// of their own; labels every surface triangle (first listed tissue wins, -1 for bone).
+void ReadBoneTissues(const YamlSection& s, const mesh::MeshData& data, BoneModel* b) {
+  if (!s.Has("tissues")) return;
+  const YAML::Node list = s.Sequence("tissues", true);
+  if (list.size() == 0) s.Fail("tissues", "expected at least one surface group name");
+  if (list.size() > 127) s.Fail("tissues", "at most 127 tissues per bone");
+  // (data.surface was moved into b->surface; the groups index its triangles)
+  if (data.tri_physical.size() != b->surface.tris.size())
+    s.Fail("tissues", "the mesh has no triangle groups (a surface mesh with named groups)");
+  b->tri_tissue.assign(b->surface.tris.size(), mesh::kBoneTissue);
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string field = IndexedField(s.Field("tissues"), i);
+    const std::string name = s.reader().Scalar(list[i], field);
+    if (std::find(b->tissues.begin(), b->tissues.end(), name) != b->tissues.end())
+      s.reader().Fail(list[i], field, "tissue '" + name + "' listed twice");
+    const auto group =
+        std::find_if(data.groups.begin(), data.groups.end(),
+                     [&](const mesh::PhysicalGroup& g) { return g.dim == 2 && g.name == name; });
+    if (group == data.groups.end()) {
+      std::string known;
+      for (const mesh::PhysicalGroup& g : data.groups)
+        if (g.dim == 2 && !g.name.empty()) known += (known.empty() ? "" : ", ") + g.name;
+      s.reader().Fail(list[i], field,
+                      "the mesh has no triangle group '" + name +
+                          "' (it has: " + (known.empty() ? "none" : known) + ")");
+    }
+    if (group->elements.empty()) s.reader().Fail(list[i], field, "group '" + name + "' is empty");
+    const auto label = static_cast<std::int8_t>(b->tissues.size());
+    b->tissues.push_back(name);
+    for (std::int32_t t : group->elements) {
+      if (t < 0 || static_cast<std::size_t>(t) >= b->tri_tissue.size()) continue;
+      std::int8_t& l = b->tri_tissue[static_cast<std::size_t>(t)];
+      if (l == mesh::kBoneTissue) l = label;
+    }
+  }
+}
+
 // A body's `fixed:` list, resolved once regions are known.
 struct PendingFixed {
   YAML::Node list;
@@ -316,7 +356,7 @@ void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     const std::string field = IndexedField("bodies", i);
     YamlSection s(root.reader(), bodies[i], field,
-                  {"name", "kind", "mesh", "material", "fixed", "hardness", "thread"});
+                  {"name", "kind", "mesh", "material", "fixed", "hardness", "thread", "tissues"});
     const std::string name = s.String("name");
     if (!names.insert(name).second)
       root.reader().Fail(s.Get("name"), s.Field("name"), "duplicate body name '" + name + "'");
@@ -343,10 +383,17 @@ void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
       BoneModel b;
       b.name = name;
       b.mesh_file = s.String("mesh");
-      WithMeshContext(s, [&] { b.surface = mesh::ReadTriMesh(MeshPath(s, base_dir)); });
+      mesh::MeshData data;
+      WithMeshContext(s, [&] { data = mesh::ReadMesh(MeshPath(s, base_dir)); });
+      if (!data.surface.tris.empty()) {
+        b.surface = std::move(data.surface);
+      } else if (!data.volume.tets.empty()) {
+        b.surface = mesh::BoundaryTriMesh(data.volume);
+      }
       if (b.surface.tris.empty())
         root.reader().Fail(s.Get("mesh"), s.Field("mesh"), "rigid body mesh has no triangles");
       b.hardness = s.Quantity("hardness", ranges::kBoneHardness, 1.0);
+      ReadBoneTissues(s, data, &b);
       m->bones.push_back(std::move(b));
     } else if (kind == "thread") {
       ThreadModel t;
@@ -360,6 +407,9 @@ void ReadBodies(const YamlSection& root, const fs::path& base_dir, Model* m,
     if (kind != "thread" && s.Has("thread"))
       root.reader().Fail(s.Get("thread"), s.Field("thread"),
                          "only thread bodies take a thread block");
+    if (kind != "rigid" && s.Has("tissues"))
+      root.reader().Fail(s.Get("tissues"), s.Field("tissues"),
+                         "only rigid bodies take tissues (surface groups of their mesh)");
     if (kind != "soft" && s.Has("material"))
       root.reader().Fail(s.Get("material"), s.Field("material"),
                          "only soft bodies take a material");

@@ -9,6 +9,7 @@
 
 #include "arthrosim/core/scope_aim.h"
 #include "arthrosim/mesh/surface.h"
+#include "arthrosim/mesh/surface_tissue.h"
 #include "instrument_shapes.h"
 #include "mesh_builder.h"
 #include "surface_cache.h"
@@ -172,18 +173,58 @@ SceneMesh BoneGeometry(const mesh::TriMesh& now, const mesh::TriMesh& initial,
   return mesh;
 }
 
+// The triangles of `whole` (one per triangle of the bone surface, in order) labelled `label`,
+// over the vertices they use.
+SceneMesh TissuePart(const SceneMesh& whole, const std::vector<std::int8_t>& labels,
+                     std::int8_t label) {
+  SceneMesh part;
+  std::vector<std::int32_t> remap(whole.vertices.size(), -1);
+  for (std::size_t t = 0; t < labels.size() && 3 * t + 2 < whole.indices.size(); ++t) {
+    if (labels[t] != label) continue;
+    for (std::size_t k = 3 * t; k < 3 * t + 3; ++k) {
+      const std::uint32_t v = whole.indices[k];
+      if (remap[v] < 0) {
+        remap[v] = static_cast<std::int32_t>(part.vertices.size());
+        part.vertices.push_back(whole.vertices[v]);
+      }
+      part.indices.push_back(static_cast<std::uint32_t>(remap[v]));
+    }
+  }
+  return part;
+}
+
 void AppendBones(const Model& model, const State& state, Scene* scene) {
   for (std::size_t i = 0; i < model.bones.size(); ++i) {
+    const BoneModel& bone = model.bones[i];
     const mesh::TriMesh& now = state.bones[i].surface;
-    const mesh::TriMesh& initial = model.bones[i].surface;
+    const mesh::TriMesh& initial = bone.surface;
     // geometry memoised: a bone changes only when burred or drilled
-    SceneMesh mesh = *CachedBoneMesh(now, initial.nodes, [&] {
-      return BoneGeometry(now, initial, "bone '" + model.bones[i].name + "'");
-    });
-    mesh.name = model.bones[i].name;
+    SceneMesh mesh = *CachedBoneMesh(
+        now, initial.nodes, [&] { return BoneGeometry(now, initial, "bone '" + bone.name + "'"); });
+    mesh.name = bone.name;
     mesh.layer = MeshLayer::kBone;
     mesh.material = TissueMaterial(mesh.name, true);
-    scene->meshes.push_back(std::move(mesh));
+    if (bone.tissues.empty()) {
+      scene->meshes.push_back(std::move(mesh));
+      continue;
+    }
+    // Tissues of their own (cartilage, labrum): one mesh each after the bone's, so each has its
+    // material and its id; the parts are open surfaces (no back-face culling).
+    const std::vector<std::int8_t> labels = mesh::TriangleTissues(initial, bone.tri_tissue, now);
+    for (std::int8_t label = mesh::kBoneTissue; label < static_cast<int>(bone.tissues.size());
+         ++label) {
+      SceneMesh part = TissuePart(mesh, labels, label);
+      part.layer = MeshLayer::kBone;
+      if (label == mesh::kBoneTissue) {
+        part.name = bone.name;
+        part.material = mesh.material;
+      } else {
+        const std::string& tissue = bone.tissues[static_cast<std::size_t>(label)];
+        part.name = BoneTissueMeshName(bone.name, tissue);
+        part.material = TissueMaterial(tissue, false);
+      }
+      scene->meshes.push_back(std::move(part));
+    }
   }
 }
 
@@ -276,12 +317,17 @@ SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone) {
   if (Contains(n, "bursa") || Contains(n, "synov")) {
     return Make(0.80f, 0.40f, 0.36f, 0.35f, 40.0f, 0.0f, 4, 0.7f);
   }
-  if (Contains(n, "labrum")) return Make(0.88f, 0.82f, 0.74f, 0.5f, 60.0f, 0.0f, 0, 0.7f);
+  // fibrocartilage: white with a faint pink-grey, glossy, less smooth than hyaline cartilage
+  if (Contains(n, "labrum")) return Make(0.90f, 0.86f, 0.84f, 0.5f, 60.0f, 0.0f, 0, 0.7f);
   if (Contains(n, "biceps")) {
     return Fibrous(Make(0.92f, 0.87f, 0.76f, 0.5f, 70.0f, 0.0f, 3, 0.8f), 1.5f, 0.10f);
   }
   // tendon and ligament (default for soft tissue): white, glossy, fibre bundles
   return Fibrous(Make(0.93f, 0.91f, 0.84f, 0.5f, 80.0f, 0.0f, 3, 0.8f), 1.5f, 0.10f);
+}
+
+std::string BoneTissueMeshName(const std::string& bone, const std::string& tissue) {
+  return bone + "/" + tissue;
 }
 
 ViewFrame ScopeViewFrame(const SceneScope& scope) {

@@ -193,13 +193,14 @@ PlanStep ReadStep(const Map& root, const YAML::Node& n, const std::string& field
 
 ProtectedStructure ReadProtected(const Map& root, const YAML::Node& n, const std::string& field,
                                  const Model* model) {
-  const Map m(
-      root.reader(), n, field,
-      {"name", "body", "region", "max_force", "max_contact_time", "zero_damage", "critical"});
+  const Map m(root.reader(), n, field,
+              {"name", "body", "region", "tissue", "max_force", "max_contact_time", "zero_damage",
+               "critical"});
   ProtectedStructure p;
   p.name = m.String("name");
   p.body = m.String("body");
   p.region = m.String("region", "");
+  p.tissue = m.String("tissue", "");
   p.max_force_n = m.Number("max_force");
   if (!(p.max_force_n > 0)) m.Fail(m.Get("max_force"), m.Field("max_force"), "must be > 0");
   p.max_contact_time_s = m.NonNegative("max_contact_time", 0);
@@ -209,6 +210,13 @@ ProtectedStructure ReadProtected(const Map& root, const YAML::Node& n, const std
     CheckName(m, "body", p.body, BodyExists(*model, p.body), "body");
     if (!p.region.empty())
       CheckName(m, "region", p.region, model->FindRegion(p.region) >= 0, "region");
+    if (!p.tissue.empty()) {
+      const int b = model->FindBone(p.body);
+      const bool known =
+          b >= 0 && std::find(model->bones[b].tissues.begin(), model->bones[b].tissues.end(),
+                              p.tissue) != model->bones[b].tissues.end();
+      CheckName(m, "tissue", p.tissue, known, ("tissue of bone '" + p.body + "'").c_str());
+    }
   }
   return p;
 }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "arthrosim/mesh/surface_tissue.h"
 #include "arthrosim/scoring/run_data.h"
 #include "score_internal.h"
 
@@ -21,6 +22,14 @@ struct BodyRef {
   ConstraintEnd::Kind kind = ConstraintEnd::Kind::kSoftBody;
   int index = -1;
 };
+
+// Whether `p` (a contact on bone `bone`) lies nearest to a triangle of its tissue `tissue`.
+bool OnTissue(const Model& model, int bone, const std::string& tissue, const Vec3& p) {
+  if (bone < 0) return false;
+  const BoneModel& b = model.bones[static_cast<std::size_t>(bone)];
+  const std::int8_t label = mesh::TissueNear(b.surface, b.tri_tissue, p);
+  return label != mesh::kBoneTissue && b.tissues[static_cast<std::size_t>(label)] == tissue;
+}
 
 BodyRef FindBody(const Model& model, const std::string& name) {
   if (int i = model.FindSoftBody(name); i >= 0) return {ConstraintEnd::Kind::kSoftBody, i};
@@ -103,6 +112,7 @@ ProtectedTouch TouchOf(const Model& model, const ProtectedStructure& p,
   for (const ToolContact& c : contacts) {
     if (c.body_kind != body.kind || c.body != body.index) continue;
     if (!p.region.empty() && !InRegionBox(model, p.region, c.position_mm)) continue;
+    if (!p.tissue.empty() && !OnTissue(model, body.index, p.tissue, c.position_mm)) continue;
     const double f = c.tool_slot >= 0 && c.tool_slot < kToolSlots
                          ? force_n[static_cast<std::size_t>(c.tool_slot)]
                          : 0.0;
@@ -132,6 +142,7 @@ void ProtectedProgress::OnFrame(double t_s, const ProtectedTouch& touch) {
 
 bool DamagesProtected(const Model& model, const ProtectedStructure& p, const Event& e) {
   if (!IsDamageEvent(e.kind) || e.body != p.body) return false;
+  if (!p.tissue.empty() && DetailText(e.detail, "tissue") != p.tissue) return false;
   return p.region.empty() || InRegionBox(model, p.region, e.position_mm);
 }
 

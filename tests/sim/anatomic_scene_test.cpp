@@ -2,20 +2,24 @@
 // its meshes are valid closed surfaces with the physical groups scoring and rendering need, every
 // landmark lies on (bone) or in (soft tissue) the body it names, and the first 10.4 s of the tour
 // (diagnostic view, subacromial view, burr onto the spur) run on it with the scope outside bone
-// and no soft-body node pushed into bone.
+// and no soft-body node pushed into bone; the subacromial bursa lies between the acromion and the
+// tendon without penetrating either, stays there at rest, and a shaver pass removes its volume.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "arthrosim/collision/tool_bone_query.h"
 #include "arthrosim/input/script_source.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/mesh/mesh_io.h"
 #include "arthrosim/mesh/mesh_validate.h"
+#include "arthrosim/mesh/surface.h"
 #include "arthrosim/sim/step.h"
 
 namespace arthrosim::sim {
@@ -201,6 +205,155 @@ TEST(AnatomicScene, TheTourRunsOnItsFirstTenSeconds) {
       scope_clearance, scope_clearance_all, deepest);
   EXPECT_GT(scope_clearance, 0.0);
   EXPECT_LT(deepest, 0.5);
+}
+
+// Where the ray from o along unit d first crosses a triangle of m (Moller-Trumbore), as the
+// distance along d; infinity if it crosses none.
+double RayHit(const Vec3& o, const Vec3& d, const mesh::TriMesh& m) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const mesh::Tri& t : m.tris) {
+    const Vec3 a = m.nodes.col(t[0]), e1 = m.nodes.col(t[1]) - a, e2 = m.nodes.col(t[2]) - a;
+    const Vec3 p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-12) continue;
+    const Vec3 s = o - a;
+    const double u = s.dot(p) / det;
+    const Vec3 q = s.cross(e1);
+    const double v = d.dot(q) / det;
+    const double h = e2.dot(q) / det;
+    if (u >= 0 && v >= 0 && u + v <= 1 && h > 0) best = std::min(best, h);
+  }
+  return best;
+}
+
+int CountInside(const Points& pts, const mesh::TetMesh& m) {
+  int n = 0;
+  for (Eigen::Index i = 0; i < pts.cols(); ++i) n += InsideTets(pts.col(i), m) ? 1 : 0;
+  return n;
+}
+
+TEST(AnatomicScene, TheBursaLiesBetweenAcromionAndTendonWithoutPenetration) {
+  const Model& m = Anatomic();
+  const int b = m.FindSoftBody("subacromial_bursa");
+  ASSERT_GE(b, 0);
+  const mesh::TetMesh& bursa = m.soft_bodies[static_cast<std::size_t>(b)].rest_mesh;
+  const mesh::TetMesh& tendon =
+      m.soft_bodies[static_cast<std::size_t>(m.FindSoftBody("supraspinatus_tendon"))].rest_mesh;
+  const mesh::TriMesh& acromion = m.bones[static_cast<std::size_t>(m.FindBone("acromion"))].surface;
+  // small: a few hundred tets beside the cuff's 3 300
+  EXPECT_GE(bursa.tets.size(), 200u);
+  EXPECT_LE(bursa.tets.size(), 1000u);
+  // no bursa node in a bone or in the tendon, no tendon node in the bursa
+  collision::BoneQueryWorld bones;
+  collision::SyncBoneQuery(MakeInitialState(m), &bones);
+  double to_bone = std::numeric_limits<double>::infinity();
+  for (Eigen::Index i = 0; i < bursa.nodes.cols(); ++i)
+    to_bone = std::min(to_bone, collision::PointBoneSignedDistance(bursa.nodes.col(i), &bones));
+  EXPECT_GT(to_bone, 0.5);
+  EXPECT_EQ(CountInside(bursa.nodes, tendon), 0);
+  EXPECT_EQ(CountInside(tendon.nodes, bursa), 0);
+  // between them: straight up from more than half of the bursa nodes the acromion lies within
+  // 6 mm (the rest are medial of x = -6, past the acromion's medial edge), straight down from
+  // every one the tendon's bursal surface within 3 mm
+  const mesh::TriMesh tendon_surface = mesh::BoundaryTriMesh(tendon);
+  int under_acromion = 0, over_tendon = 0;
+  double up_max = 0, down_max = 0;
+  for (Eigen::Index i = 0; i < bursa.nodes.cols(); ++i) {
+    const Vec3 p = bursa.nodes.col(i);
+    const double up = RayHit(p, Vec3::UnitZ(), acromion);
+    const double down = RayHit(p, -Vec3::UnitZ(), tendon_surface);
+    if (up < 6.0) {
+      ++under_acromion;
+      up_max = std::max(up_max, up);
+    }
+    if (down < 3.0) {
+      ++over_tendon;
+      down_max = std::max(down_max, down);
+    }
+  }
+  std::printf(
+      "bursa: %d nodes / %zu tets, %.2f mm from bone; nodes under the acromion %d, over "
+      "the tendon %d (of %d)\n",
+      static_cast<int>(bursa.nodes.cols()), bursa.tets.size(), to_bone, under_acromion, over_tendon,
+      static_cast<int>(bursa.nodes.cols()));
+  EXPECT_GT(under_acromion, bursa.nodes.cols() / 2);
+  EXPECT_EQ(over_tendon, bursa.nodes.cols());
+  // and it stays there: one second from rest under gravity, nothing pushed into bone or tendon
+  State s = MakeInitialState(m);
+  Workspace ws;
+  BuildWorkspace(m, s, &ws);
+  InputFrame idle;
+  idle.camera.pose = m.camera.initial_pose;
+  for (int k = 0; k < 50; ++k) Step(m, idle, &s, &ws);
+  const Points& x = s.soft_bodies[static_cast<std::size_t>(b)].x;
+  ASSERT_TRUE(x.allFinite());
+  const double moved = (x - bursa.nodes).colwise().norm().maxCoeff();
+  std::printf("bursa after 1 s at rest: largest node move %.3f mm\n", moved);
+  EXPECT_LT(moved, 1.0);
+  collision::SyncBoneQuery(s, &bones);
+  for (Eigen::Index i = 0; i < x.cols(); ++i)
+    EXPECT_GT(collision::PointBoneSignedDistance(x.col(i), &bones), 0.0) << "node " << i;
+}
+
+// Runs the script on the anatomic scene to its end; the State at the end.
+State RunScript(const std::string& rel, std::vector<Event>* events) {
+  const Model& m = Anatomic();
+  input::ScriptOptions o;
+  o.dt_s = m.options.dt_s;
+  auto script = input::ScriptSource::Open(kSource + "/" + rel, m, o);
+  State s = MakeInitialState(m);
+  Workspace ws;
+  BuildWorkspace(m, s, &ws);
+  const int steps = static_cast<int>(script->end_time_s() / m.options.dt_s + 0.5);
+  for (int k = 0; k < steps; ++k) {
+    InputFrame f;
+    script->Frame(k, k * m.options.dt_s, &f);
+    Step(m, f, &s, &ws);
+    FeedbackFrame fb;
+    for (std::size_t i = 0; i < s.tools.size() && i < fb.force_n.size(); ++i)
+      fb.force_n[i] = s.tools[i].force_n;
+    script->Feedback(fb);
+    events->insert(events->end(), s.events.begin(), s.events.end());
+  }
+  return s;
+}
+
+double AliveRestVolume(const SoftBodyState& b) {
+  double v = 0;
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive.empty() && b.tet_alive[t] == 0) continue;
+    const mesh::Tet& e = b.tets[t];
+    const Vec3 a = b.x_rest.col(e[0]);
+    v += (b.x_rest.col(e[1]) - a).dot((b.x_rest.col(e[2]) - a).cross(b.x_rest.col(e[3]) - a)) / 6;
+  }
+  return v;
+}
+
+TEST(AnatomicScene, AShaverPassOverTheBursaRemovesItsVolume) {
+  const Model& m = Anatomic();
+  const int b = m.FindSoftBody("subacromial_bursa");
+  ASSERT_GE(b, 0);
+  const double v0 = AliveRestVolume(MakeInitialState(m).soft_bodies[static_cast<std::size_t>(b)]);
+  std::vector<Event> events;
+  const State s = RunScript("trajectories/anatomic/shaver_bursa.yaml", &events);
+  const SoftBodyState& bursa = s.soft_bodies[static_cast<std::size_t>(b)];
+  int shaves = 0, removed_tets = 0;
+  for (const Event& e : events) {
+    if (e.kind != "shave" || e.body != "subacromial_bursa") continue;
+    ++shaves;
+    const std::size_t at = e.detail.find("removed_tets=");
+    if (at != std::string::npos) removed_tets += std::atoi(e.detail.c_str() + at + 13);
+  }
+  const double v1 = AliveRestVolume(bursa);
+  std::printf(
+      "shaver over the bursa: %d shave events, %d tets removed, removed volume %.2f mm3 "
+      "(alive rest volume %.1f -> %.1f mm3)\n",
+      shaves, removed_tets, bursa.removed_volume_mm3, v0, v1);
+  for (const SoftBodyState& sb : s.soft_bodies) ASSERT_TRUE(sb.x.allFinite());
+  EXPECT_GT(shaves, 10);
+  EXPECT_GT(removed_tets, 5);
+  EXPECT_GT(bursa.removed_volume_mm3, 5.0);
+  EXPECT_NEAR(v0 - v1, bursa.removed_volume_mm3, 1e-6 * v0);
 }
 
 }  // namespace

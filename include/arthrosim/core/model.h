@@ -39,6 +39,13 @@ struct BoneModel {
   std::string mesh_file;
   mesh::TriMesh surface;  ///< closed, outward oriented, mm
   double hardness = 1.0;  ///< dimensionless removal-rate divisor for burr/awl (1 = cancellous)
+  /// Surface groups of the mesh that are a tissue of their own (scenario `tissues`, e.g.
+  /// "cartilage", "labrum"): drawn with their own material and tissue id, burring them is
+  /// collateral damage (docs/operations.md, Bone). At most 127.
+  std::vector<std::string> tissues;
+  /// Per triangle of `surface`: index into `tissues`, or -1 for the bone itself; empty when
+  /// `tissues` is.
+  std::vector<std::int8_t> tri_tissue;
 };
 
 /// Suture thread: a chain of nodes (mass-spring), No. 2 FiberWire by default.

@@ -112,6 +112,11 @@ Scene BuildScene(const Model& model, const State& state);
 /// get fibre_dir = +x (BuildScene sets each body's own axis).
 SceneMaterial TissueMaterial(const std::string& body_name, bool is_bone);
 
+/// Name of the SceneMesh of a bone's own tissue (BoneModel::tissues): "humerus/cartilage". A bone
+/// with tissues becomes one mesh of the bone itself (named as the bone) followed by one mesh per
+/// tissue, in BoneModel::tissues order, each with its own material and tissue id.
+std::string BoneTissueMeshName(const std::string& bone, const std::string& tissue);
+
 /// World camera frame of the scope: view direction = +z tilted lens_angle toward +y, rotated by
 /// lens_roll about +z; image up = +y rotated by head_roll about +z, made orthogonal to forward.
 ViewFrame ScopeViewFrame(const SceneScope& scope);

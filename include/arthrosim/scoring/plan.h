@@ -71,8 +71,11 @@ struct PlanStep {
 /// A structure that must not be hurt.
 struct ProtectedStructure {
   std::string name;
-  std::string body;               ///< soft body / bone / thread name of the scenario
-  std::string region;             ///< optional: only this region's box of the body counts
+  std::string body;    ///< soft body / bone / thread name of the scenario
+  std::string region;  ///< optional: only this region's box of the body counts
+  /// optional: only this tissue of the bone counts (BoneModel::tissues, e.g. "cartilage"):
+  /// damage events whose detail names it (`tissue=`), contacts nearest to its triangles
+  std::string tissue;
   double max_force_n = 0;         ///< tool force limit while in contact, N
   double max_contact_time_s = 0;  ///< allowed total contact time, s (0 = none allowed)
   bool zero_damage = true;        ///< any damage event on it is a critical error
