@@ -1,7 +1,8 @@
 // Convergence of the thread Newton solve on the shoulder scene's suture (No. 2 FiberWire: EA 5 kN
 // on 1 mm segments, 0.3 mg nodes, node 0 held by a 2000 N/mm anchor spring), a limb draped over
 // a ball and pulled by a moving 5 N/mm grip spring: the retriever's situation (issues #14, #16,
-// #17), and the independence of the solves of separate threads.
+// #17), the static equilibrium of a tensioned limb over a frictionless ball (the analytic
+// tension), and the independence of the solves of separate threads.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -133,6 +134,90 @@ TEST(ThreadConvergence, DISABLED_PulledLimbOverBallConvergesAndFollowsTheGrip) {
   // Taut at the end: the grip's pull reaches the anchor (frictionless ball, light limb).
   EXPECT_GT(r.final_grip_n, 1.0);
   EXPECT_NEAR(r.final_anchor_n, r.final_grip_n, 0.05 * r.final_grip_n);
+}
+
+struct PulleyResult {
+  int unconverged = 0;        // solves stopped by the iteration cap, over all steps
+  double max_strain = 0;      // largest |l / L - 1| at the end
+  double grip_n = 0;          // grip spring force at the end, N
+  double anchor_n = 0;        // anchor spring force at the end, N
+  double tension_n = 0;       // analytic tension, N
+  double max_speed_mm_s = 0;  // largest node speed at the end
+};
+
+// A limb wrapped half round a frictionless ball (radius 10 mm, no gravity): two 20 mm legs
+// joined by a semicircle of 32 segments, node 0 held by the anchor spring (2000 N/mm) where it
+// lies, the last node by a grip spring (5 N/mm) whose anchor is `pull_mm` beyond it along the
+// leg. At static equilibrium the tension is uniform (the ball pushes only along its normals)
+// and the springs and the chain are in series: T = pull / (1 / k_anchor + 1 / k_grip + L / EA
+// + the compliance of the arc sinking into the 1000 N/mm contact planes, 0.15 % of the sum).
+PulleyResult Pulley(int steps, double pull_mm) {
+  const double r = 10, ea_n = 5000, ka = 2000, kg = 5, kc = 1000;
+  std::vector<Vec3> pts;
+  for (int i = 0; i <= 20; ++i) pts.push_back(Vec3(-r, 0, -20 + i));
+  for (int i = 1; i <= 32; ++i) {
+    const double a = units::kPi * (1 - i / 32.0);
+    pts.push_back(Vec3(r * std::cos(a), 0, r * std::sin(a)));
+  }
+  for (int i = 1; i <= 20; ++i) pts.push_back(Vec3(r, 0, -i));
+  ThreadModel m = Suture(Vec3::Zero());
+  m.initial.nodes.resize(3, static_cast<Eigen::Index>(pts.size()));
+  m.initial.edges.clear();
+  for (std::size_t i = 0; i < pts.size(); ++i) m.initial.nodes.col(i) = pts[i];
+  for (std::size_t i = 0; i + 1 < pts.size(); ++i)
+    m.initial.edges.push_back({static_cast<std::int32_t>(i), static_cast<std::int32_t>(i + 1)});
+  m.stretch_stiffness_n = ea_n;
+  const int last = static_cast<int>(pts.size()) - 1;
+  std::vector<ThreadModel> models{m};
+  std::vector<ThreadState> states{RestState(m)};
+  ThreadWorkspace ws;
+  InitThreadWorkspace(models, &ws);
+  double length = 0;
+  for (double l : ws.rest[0].rest_length_mm) length += l;
+  PulleyResult res;
+  // The arc sinks T dtheta / kc at each of its nodes (dtheta = pi / 32), so its path is
+  // shorter by pi^2 T / (32 kc).
+  res.tension_n = pull_mm / (1 / ka + 1 / kg + length / ea_n + units::kPi * units::kPi / (32 * kc));
+  SpringSet springs;
+  for (int step = 0; step < steps; ++step) {
+    ContactSet contacts;
+    BallContacts(0, states[0], Vec3::Zero(), r, &contacts);
+    for (PointContact& c : contacts) c.stiffness_n_per_mm = kc;
+    springs.clear();
+    PointSpring anchor = NodeSpring(0, 0, ka);
+    anchor.anchor_mm = pts.front();
+    springs.push_back(anchor);
+    PointSpring grip = NodeSpring(0, last, kg);
+    grip.anchor_mm = pts.back() + Vec3(0, 0, -pull_mm);
+    springs.push_back(grip);
+    StepThreads(models, kDt, Vec3::Zero(), &contacts, &springs, &states, &ws);
+    res.unconverged += ws.last.unconverged_solves;
+  }
+  for (int i = 0; i < last; ++i) {
+    const double l = (states[0].x.col(i + 1) - states[0].x.col(i)).norm();
+    res.max_strain = std::max(res.max_strain, std::abs(l / ws.rest[0].rest_length_mm[i] - 1));
+  }
+  for (int i = 0; i <= last; ++i)
+    res.max_speed_mm_s = std::max(res.max_speed_mm_s, states[0].v.col(i).norm());
+  res.grip_n = springs[1].force_n.norm();
+  res.anchor_n = springs[0].force_n.norm();
+  return res;
+}
+
+// The limb over the ball reaches static equilibrium in which the chain keeps its length (strain
+// below 1e-4) and the grip carries the analytic tension, equal to the anchor's.
+TEST(ThreadConvergence, LimbOverFrictionlessBallCarriesTheAnalyticTension) {
+  const int steps = 50;  // 1 s
+  const PulleyResult r = Pulley(steps, 0.05);
+  std::printf(
+      "pulley: %d of %d solves unconverged, strain %.2e, grip %.5f N, anchor %.5f N, analytic "
+      "%.5f N, speed %.2e mm/s\n",
+      r.unconverged, steps, r.max_strain, r.grip_n, r.anchor_n, r.tension_n, r.max_speed_mm_s);
+  EXPECT_EQ(r.unconverged, 0);
+  EXPECT_LT(r.max_strain, 1e-4);
+  EXPECT_LT(r.max_speed_mm_s, 1e-3);
+  EXPECT_NEAR(r.grip_n, r.tension_n, 1e-3 * r.tension_n);
+  EXPECT_NEAR(r.anchor_n, r.grip_n, 1e-3 * r.grip_n);
 }
 
 // Separate threads are separate groups of the Newton solve, each with its own active set, line
