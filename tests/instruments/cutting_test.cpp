@@ -174,8 +174,9 @@ TEST(ScissorsCut, BitIdenticalWithOneAndTwoThreads) {
 
 // ---- Split mode -------------------------------------------------------------------------
 
-// The quality the pieces of the bar cut keep (radius ratio; the bar's Kuhn tets have 0.72).
-constexpr double kMinSplitQuality = 0.01;
+// The quality every piece of a split keeps with the default snap_fraction 0.2 (radius ratio;
+// the grids' Kuhn tets have 0.72). Measured worst over the 300 random planes below: 0.039.
+constexpr double kMinSplitQuality = 0.03;
 
 void ExpectValidMesh(const SoftBodyState& b) {
   for (std::size_t t = 0; t < b.tets.size(); ++t) {
@@ -190,7 +191,6 @@ void ExpectValidMesh(const SoftBodyState& b) {
 }
 
 TEST(ScissorsSplit, CutsTheBarInTwoConservingVolumeWithValidElements) {
-  // Split mode is not available from scenarios yet (docs/operations.md); set directly here.
   BarScene scene;
   scene.model.operations.scissors.mode = CutMode::kSplit;
   const Model& m = scene.model;
@@ -224,18 +224,102 @@ TEST(ScissorsSplit, CutsTheBarInTwoConservingVolumeWithValidElements) {
   EXPECT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0);
 }
 
-TEST(ScissorsSplit, RandomPlanesConserveVolumeAndOrientation) {
-  // Planes in every direction through a 4 x 4 x 4 grid: each cut conserves the rest volume to
-  // 1e-9 and leaves every element positive. (Quality and separation are not guaranteed yet:
-  // the worst piece measured here has radius ratio 0.0009, and a few planes leave the sides
-  // joined; docs/operations.md.)
+// Split mode on the sheet of ScissorsCut.ProgressiveCuttingOverOneHundredFiftySteps (blade
+// plane y = 0.3): 150 steps of continuous cutting conserve the rest volume to 1e-9, leave every
+// element positive with radius ratio >= kMinSplitQuality, and the cut opens behind the blades:
+// the two sides of every cut element share no node.
+// DISABLED: the soft solve diverges at step 142 (it was 83 before the cut stopped re-creating
+// undivided tets and reused earlier copies). Rest volume, rest orientation and quality (worst
+// 0.047) hold every step up to there, but from step 15 hundreds of elements, original ones
+// too, are inverted in the current configuration: the blades press on the freshly separated
+// faces, which the remove mode never has (it deletes the tets in the blades' path). This is
+// why `operations.scissors.mode: split` is still rejected by the scenario loader.
+TEST(ScissorsSplit, DISABLED_ProgressiveSplitCuttingOverOneHundredFiftySteps) {
+  Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {66, 8, 1}, 1.0),
+                      [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
+  m.operations.scissors.mode = CutMode::kSplit;
+  SceneRun run(m);
+  auto& [s, ws] = run;
+  const double v0 = AliveRestVolume(s, 0);
+  const std::size_t tets0 = s.soft_bodies[0].tets.size();
+  const int steps = 150;
+  int cut_steps = 0;
+  double front = -1;
+  for (int k = 0; k <= steps; ++k) {
+    const double tip_x = 3.0 + 0.4 * k;
+    const InputFrame in = ToolInput(m, "scissors", Vec3(tip_x, 0.3, 0), Vec3(0, 0, 1),
+                                    Vec3(1, 0, 0), 0.9 * k / steps, 0);
+    sim::Step(m, in, &s, &ws);
+    ASSERT_TRUE(s.soft_bodies[0].x.allFinite()) << "step " << k;
+    for (const Event& e : EventsOf(s, "cut")) {
+      ++cut_steps;
+      EXPECT_NE(e.detail.find("mode=split"), std::string::npos);
+      front = std::max(front, e.position_mm.x());
+    }
+    ASSERT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0) << "step " << k;
+  }
+  EXPECT_GE(cut_steps, 80);
+  EXPECT_GT(front, 60.0);
+  const SoftBodyState& b = s.soft_bodies[0];
+  ExpectValidMesh(b);
+  double worst = 1;
+  for (std::size_t t = tets0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive[t]) continue;
+    const mesh::Tet& e = b.tets[t];
+    worst = std::min(worst, RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]),
+                                        b.x_rest.col(e[3])));
+  }
+  EXPECT_GE(worst, kMinSplitQuality);
+  // Behind the blades (x in [5, 55]) no node is shared by a tet wholly above the plane and one
+  // wholly below it (rest positions; on-plane nodes count for either side).
+  std::vector<std::uint8_t> sides(static_cast<std::size_t>(b.x.cols()), 0);
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive[t]) continue;
+    Vec3 c = Vec3::Zero();
+    for (std::int32_t n : b.tets[t]) c += b.x_rest.col(n);
+    c *= 0.25;
+    if (c.x() < 5 || c.x() > 55) continue;
+    for (std::int32_t n : b.tets[t]) sides[static_cast<std::size_t>(n)] |= c.y() < 0.3 ? 2 : 1;
+  }
+  int joined = 0;
+  for (std::uint8_t x : sides) joined += x == 3;
+  EXPECT_EQ(joined, 0);
+}
+
+// Each alive tet of body 0 on one side of the plane: no tet has nodes farther than `tol_mm`
+// from it on both sides.
+bool EveryTetOnOneSide(const State& s, const Vec3& point, const Vec3& normal, double tol_mm) {
+  const SoftBodyState& b = s.soft_bodies[0];
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    if (!b.tet_alive[t]) continue;
+    bool above = false, below = false;
+    for (std::int32_t n : b.tets[t]) {
+      const double d = normal.dot(Vec3(b.x.col(n)) - point);
+      above |= d > tol_mm;
+      below |= d < -tol_mm;
+    }
+    if (above && below) return false;
+  }
+  return true;
+}
+
+TEST(ScissorsSplit, RandomPlanesGiveValidSeparatedPiecesOfBoundedQuality) {
+  // 300 planes in every direction through a 4 x 4 x 4 grid (unit cubes of six tets, radius
+  // ratio 0.72), each cut with a triangle covering the grid: the rest volume is conserved to
+  // 1e-9, every element is positive with radius ratio >= kMinSplitQuality, every tet lies on
+  // one side of the plane (nodes snapped to it may lie up to snap_fraction of an edge, 0.2 x
+  // sqrt(3) mm, off it), and the grid falls apart into exactly two pieces. (With the sequential
+  // edge bisection this replaced: worst radius ratio 0.0009, tets across the plane, and two of
+  // the 300 planes left the sides joined at a snapped node.)
   Model m = GridModel(GridMesh(Vec3(0, 0, 0), {4, 4, 4}, 1.0), [](const Vec3&) { return false; });
   std::uint64_t seed = 12345;
   auto uniform = [&seed] {
     seed = seed * 6364136223846793005ull + 1442695040888963407ull;
     return static_cast<double>(seed >> 11) / 9007199254740992.0;
   };
+  const double snap = m.operations.scissors.snap_fraction;
   double worst = 1;
+  int apart = 0;
   for (int trial = 0; trial < 300; ++trial) {
     SceneRun run(m);
     auto& [s, ws] = run;
@@ -249,7 +333,7 @@ TEST(ScissorsSplit, RandomPlanesConserveVolumeAndOrientation) {
     TetsCrossedByTriangle(s, 0, tri, &tree, &crossed);
     const double v0 = AliveRestVolume(s, 0);
     const std::size_t tets0 = s.soft_bodies[0].tets.size();
-    const SplitResult r = SplitTetsByPlane(m, 0, crossed, point, normal, 0.1, &tree, &ws.soft, &s);
+    SplitTetsByPlane(m, 0, crossed, point, normal, snap, &tree, &ws.soft, &s);
     const SoftBodyState& b = s.soft_bodies[0];
     ASSERT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0) << "trial " << trial;
     ExpectValidMesh(b);
@@ -258,10 +342,14 @@ TEST(ScissorsSplit, RandomPlanesConserveVolumeAndOrientation) {
       const double q = RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]),
                                    b.x_rest.col(e[3]));
       worst = std::min(worst, q);
+      EXPECT_GE(q, kMinSplitQuality) << "trial " << trial << ", tet " << t;
     }
-    (void)r;
+    EXPECT_TRUE(EveryTetOnOneSide(s, point, normal, snap * std::sqrt(3.0) + 1e-9))
+        << "trial " << trial;
+    apart += AliveComponents(s, 0) == 2;
+    EXPECT_EQ(AliveComponents(s, 0), 2) << "trial " << trial;
   }
-  std::printf("worst split quality %.4f\n", worst);
+  std::printf("worst split quality %.4f, %d of 300 cut apart\n", worst, apart);
 }
 
 // ---- Cutter ----------------------------------------------------------------------------

@@ -49,14 +49,18 @@ struct SplitResult {
 };
 
 /// Split mode: cuts the tets `tets` (alive, ascending, of soft body `body`) along the plane
-/// through `point` with unit normal `normal` (world, current positions). A tet edge whose ends
-/// lie strictly on opposite sides is cut at its crossing if that is at least snap_fraction
-/// (in [0, 0.5)) of the edge from both ends; nearer, the cut passes through the end node (no
-/// sliver). Every alive tet holding a cut edge, found through *tree, is bisected at the edge
-/// points in edge order, so the mesh stays conforming and every piece keeps a share >=
-/// snap_fraction of its parent per bisection, positively oriented, volume conserved up to
-/// rounding. Then the two sides come apart: a node used by pieces of crossed tets on both sides
-/// gets a copy for one side. New nodes interpolate x, v and x_rest along their edge.
+/// through `point` with unit normal `normal` (world, current positions). A node of those tets
+/// whose edge to the other side crosses the plane within snap_fraction (in [0, 0.5)) of the
+/// edge from it counts as on the plane (the cut passes through it: no sliver); so does a node an
+/// earlier split made. Each crossed tet is cut by the plane through its on-plane nodes and edge
+/// points into one convex piece per side (tet, pyramid or prism), split into tets; every other
+/// alive tet holding a cut edge (found through *tree) is bisected at its edge points in cut
+/// order, and the quads on shared faces take the diagonal that order gives, so the mesh stays
+/// conforming. Pieces are positive at rest, the rest volume is conserved up to rounding, each
+/// crossed piece lies on one side. The sides come apart: a node used on both sides gets one node
+/// per side (an earlier copy at the same rest position if one exists, else a new copy). A crossed
+/// tet the plane does not divide is replaced only if one of its nodes changes. New nodes
+/// interpolate x, v and x_rest along their edge.
 SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::int32_t> tets,
                              const Vec3& point, const Vec3& normal, double snap_fraction,
                              collision::TetTree* tree, physics::SoftSystem* soft, State* state);
