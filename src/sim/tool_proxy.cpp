@@ -251,14 +251,17 @@ class ContactPlanes {
 // between surfaces, e.g. a shaft between acromion and humeral head), by the shortest
 // displacement that clears every surface met so far (ContactPlanes::Separation), at most
 // kReachMm. False if it is still inside after kMaxPushes tries; `pose` is then unchanged.
+// Without haptics.slide: every push along the reported way out, and a failed push-out leaves
+// the pose where the pushes took it (the earlier proxy, bit for bit).
 bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::ToolBoneHit* hit,
              ProxyWorkspace* ws) {
+  const bool slide = model.haptics.slide;
   const Pose start = *pose;
   ContactPlanes met;
   for (int k = 0; k < kMaxPushes && hit->clearance_mm < 0; ++k) {
     met.Add(pose->position_mm, hit->normal, hit->clearance_mm);
     Vec3 push = (kSkinMm - hit->clearance_mm) * hit->normal;
-    if (k > 0) {
+    if (slide && k > 0) {
       const Vec3 clear_all = met.Separation(pose->position_mm);
       if (clear_all.squaredNorm() > 0 && clear_all.norm() <= kReachMm) push = clear_all;
     }
@@ -266,7 +269,7 @@ bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::T
     *hit = Clearance(model, tool, *pose, ws);
   }
   if (hit->clearance_mm >= 0) return true;
-  *pose = start;
+  if (slide) *pose = start;  // (the earlier proxy keeps the half-pushed pose)
   return false;
 }
 
@@ -285,13 +288,15 @@ Pose SlideGoal(const Pose& cur, const Pose& goal, const collision::ToolBoneHit& 
 }
 
 // Follows the handle from `from` by conservative advancement: steps no longer than the current
-// clearance (or kMinAdvanceMm near bone), each pushed out of bone if it overlaps (a step that
-// cannot be pushed out is retried shorter, kMaxHalvings times); near bone each
+// clearance (or kMinAdvanceMm near bone), each pushed out of bone if it overlaps. With
+// haptics.slide (else the earlier proxy): a step that cannot be pushed out is retried shorter,
+// kMaxHalvings times, and near bone each
 // step heads for the goal slid along the surfaces met so far (SlideGoal). Stops at the handle (or
 // its slid point), when stuck (no progress: the handle lies behind the surface), or after
 // kMaxIterations.
 Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const Pose& goal,
             double arm, collision::ToolBoneHit* hit, int* iterations, ProxyWorkspace* ws) {
+  const bool slide = model.haptics.slide;
   Pose cur = from;
   *hit = Clearance(model, tool, cur, ws);
   if (hit->clearance_mm < 0 && !PushOut(model, tool, &cur, hit, ws)) return cur;
@@ -301,16 +306,18 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
   }
   int it = 0;
   for (; it < kMaxIterations; ++it) {
-    const Pose target = SlideGoal(cur, goal, *hit, planes);
+    const Pose target = slide ? SlideGoal(cur, goal, *hit, planes) : goal;
     const double remaining = Motion(cur, target, arm);
     if (remaining <= kArrivedMm) break;
-    // conservative advancement: a tool clear of bone by c moves c - kSkinMm safely
-    double advance =
-        hit->clearance_mm >= kMinAdvanceMm ? hit->clearance_mm - kSkinMm : kMinAdvanceMm;
+    // conservative advancement: a tool clear of bone by c moves c - kSkinMm safely (the earlier
+    // proxy: c)
+    const double skin = slide ? kSkinMm : 0.0;
+    double advance = hit->clearance_mm >= kMinAdvanceMm ? hit->clearance_mm - skin : kMinAdvanceMm;
     Pose next;
     collision::ToolBoneHit h;
     bool placed = false;
-    for (int halving = 0; halving <= kMaxHalvings && !placed; ++halving, advance *= 0.5) {
+    const int halvings = slide ? kMaxHalvings : 0;
+    for (int halving = 0; halving <= halvings && !placed; ++halving, advance *= 0.5) {
       next = Interpolate(cur, target, std::min(1.0, advance / remaining));
       h = Clearance(model, tool, next, ws);
       const Vec3 met_at = next.position_mm;

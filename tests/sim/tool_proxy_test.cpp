@@ -226,8 +226,15 @@ Vec3 RestThenMoveHand(Sim* r, double x, double y, const Vec3& handle, int* itera
 // that advances 0.25 mm toward the handle and is pushed out again creeps along the face by a
 // shrinking fraction of the remaining way (~0.92 per iteration: it stops at the 96-iteration cap,
 // short of the handle).
+// A bone block with the sliding proxy on (haptics.slide).
+Model SlidingBlockBoneModel() {
+  Model m = BlockBoneModel();
+  m.haptics.slide = true;
+  return m;
+}
+
 TEST(ToolProxyTest, HandMovedAlongAFaceItPressesIntoSlidesTheProxyInAFewIterations) {
-  Sim r(BlockBoneModel());
+  Sim r(SlidingBlockBoneModel());
   int iterations = 0;
   const Vec3 p = RestThenMoveHand(&r, 0, 1, Vec3(2, 1, -3), &iterations);
   std::printf("slide along a face: proxy (%.6f, %.6f, %.6f) in %d iterations\n", p.x(), p.y(),
@@ -239,12 +246,22 @@ TEST(ToolProxyTest, HandMovedAlongAFaceItPressesIntoSlidesTheProxyInAFewIteratio
   EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
 }
 
+// The contrast: the earlier proxy (haptics.slide false) creeps along the face, runs into the
+// iteration cap and ends short of the handle's projection.
+TEST(ToolProxyTest, WithoutTheSlideTheProxyCreepsAlongTheFace) {
+  Sim r(BlockBoneModel());
+  int iterations = 0;
+  const Vec3 p = RestThenMoveHand(&r, 0, 1, Vec3(2, 1, -3), &iterations);
+  EXPECT_EQ(iterations, kProxyMaxIterations);
+  EXPECT_LT(p.x(), 2.0 - 1e-4);
+}
+
 // A concave corner: the burr resting on a floor is moved by the hand past a wall into the crease
 // (the hand 4 mm behind the wall and 3 mm under the floor): it slides into the crease and stops
 // there touching both faces, in about one iteration per 0.25 mm of the way (the zig-zagging proxy
 // creeps into the crease and needs several times as many).
 TEST(ToolProxyTest, PushIntoACreaseOfTwoFacesStopsInTheCrease) {
-  Model m = BlockBoneModel();                                   // floor: top face z = 0
+  Model m = SlidingBlockBoneModel();                            // floor: top face z = 0
   AddBoxBone(&m, "wall", Vec3(0, -20, -10), Vec3(20, 20, 20));  // wall: face x = 0
   Sim r(std::move(m));
   const double radius = r.model.instruments[0].tip_radius_mm;  // = the shaft's
@@ -270,7 +287,7 @@ TEST(ToolProxyTest, PushIntoACreaseOfTwoFacesStopsInTheCrease) {
 // The same into a corner of three faces (floor, wall x = 0, wall y = 0): the burr stops in the
 // corner touching all three.
 TEST(ToolProxyTest, PushIntoACornerOfThreeFacesStopsInTheCorner) {
-  Model m = BlockBoneModel();                                     // floor: top face z = 0
+  Model m = SlidingBlockBoneModel();                              // floor: top face z = 0
   AddBoxBone(&m, "wall_x", Vec3(0, -20, -10), Vec3(20, 20, 20));  // face x = 0
   AddBoxBone(&m, "wall_y", Vec3(-20, 0, -10), Vec3(20, 20, 20));  // face y = 0
   Sim r(std::move(m));
@@ -312,10 +329,12 @@ TEST(ToolProxyTest, ScenarioKeysAreReadAndChecked) {
   const std::string base = "name: h\nmaterials: {}\nbodies: []\n";
   const Model m =
       io::LoadScenarioFromText(base +
-                                   "haptics: {proxy: false, coupling_stiffness_n_per_mm: 0.5, "
+                                   "haptics: {proxy: false, slide: true, "
+                                   "coupling_stiffness_n_per_mm: 0.5, "
                                    "coupling_damping_n_s_per_mm: 0.001, max_force_n: 3.3}\n",
                                "h.yaml");
   EXPECT_FALSE(m.haptics.proxy);
+  EXPECT_TRUE(m.haptics.slide);
   EXPECT_EQ(m.haptics.coupling_stiffness_n_per_mm, 0.5);
   EXPECT_EQ(m.haptics.coupling_damping_n_s_per_mm, 0.001);
   EXPECT_EQ(m.haptics.max_force_n, 3.3);
