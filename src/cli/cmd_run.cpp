@@ -21,6 +21,7 @@
 #include "arthrosim/io/run_writer.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
+#include "arthrosim/sim/tool_proxy.h"
 #include "commands.h"
 #include "live_feedback.h"
 #include "progress.h"
@@ -178,6 +179,9 @@ int Run(const RunArgs& a) {
   // Thread solves that stopped before converging (max_newton_iterations or the line-search
   // floor), counted from each step's last thread solve; printed only (docs/operations.md).
   std::int64_t thread_solves = 0, thread_unconverged = 0;
+  // The tool proxy's work (docs/contact-model.md): clearance searches and slot-steps that ran
+  // into the iteration cap; printed only.
+  std::int64_t proxy_queries = 0, proxy_capped = 0;
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
@@ -196,6 +200,8 @@ int Run(const RunArgs& a) {
     }
     thread_solves += ws.timings.thread.solves;
     thread_unconverged += ws.timings.thread.unconverged_solves;
+    proxy_queries += ws.proxy.clearance_queries;
+    for (int it : ws.proxy.iterations) proxy_capped += it >= sim::kProxyMaxIterations ? 1 : 0;
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());
@@ -235,6 +241,8 @@ int Run(const RunArgs& a) {
     fmt::print(stderr,
                "thread solves unconverged: {} of {} (thread_solver.max_newton_iterations {})\n",
                thread_unconverged, thread_solves, model.thread_solver.max_newton_iterations);
+    fmt::print(stderr, "tool proxy: {} clearance queries, {} slot-steps at the {}-iteration cap\n",
+               proxy_queries, proxy_capped, sim::kProxyMaxIterations);
   }
   return kExitOk;
 }

@@ -202,9 +202,10 @@ void ReadHaptics(const YamlSection& root, Model* m) {
   if (!root.Has("haptics")) return;
   HapticsOptions& h = m->haptics;
   YamlSection s(root.reader(), root.Get("haptics"), "haptics",
-                {"proxy", "coupling_stiffness_n_per_mm", "coupling_damping_n_s_per_mm",
+                {"proxy", "slide", "coupling_stiffness_n_per_mm", "coupling_damping_n_s_per_mm",
                  "max_force_n", "trapped_gap_mm", "trapped_friction"});
   h.proxy = s.Bool("proxy", h.proxy);
+  h.slide = s.Bool("slide", h.slide);
   h.coupling_stiffness_n_per_mm =
       s.Positive("coupling_stiffness_n_per_mm", h.coupling_stiffness_n_per_mm);
   h.coupling_damping_n_s_per_mm =

@@ -1,7 +1,10 @@
 #include "arthrosim/sim/tool_proxy.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 
 namespace arthrosim::sim {
 namespace {
@@ -14,8 +17,10 @@ constexpr double kMinAdvanceMm = 0.25;
 // Clearance the push-out leaves between tool and bone, mm.
 constexpr double kSkinMm = 1e-3;
 // Bounds on the work per slot and step.
-constexpr int kMaxIterations = 96;
+constexpr int kMaxIterations = kProxyMaxIterations;
 constexpr int kMaxPushes = 4;
+// A step that cannot be pushed out of bone is retried this many times at half the length.
+constexpr int kMaxHalvings = 3;
 // Motion below this (mm) counts as arrived / stuck.
 constexpr double kArrivedMm = 1e-6;
 // Soft tissue trapped against bone: when the instrument is within kTrappedMm of bone and pressed
@@ -57,19 +62,9 @@ Pose Interpolate(const Pose& a, const Pose& b, double t) {
 collision::ToolBoneHit Clearance(const Model& model, ToolState tool, const Pose& pose,
                                  ProxyWorkspace* ws) {
   tool.pose = pose;
+  ++ws->clearance_queries;
   collision::ToolPrimitivesWorld(model, tool, &ws->primitives);
   return collision::ToolBoneClearance(ws->primitives, kReachMm, &ws->bones);
-}
-
-// Pushes `pose` out of bone along the reported way out; false if it is still inside after
-// kMaxPushes tries.
-bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::ToolBoneHit* hit,
-             ProxyWorkspace* ws) {
-  for (int k = 0; k < kMaxPushes && hit->clearance_mm < 0; ++k) {
-    pose->position_mm += (kSkinMm - hit->clearance_mm) * hit->normal;
-    *hit = Clearance(model, tool, *pose, ws);
-  }
-  return hit->clearance_mm >= 0;
 }
 
 // Where a newly inserted instrument starts: at its handle if clear of bone (and not inside it),
@@ -137,22 +132,203 @@ Vec3 TissueLimitedGoal(const Model& model, const ToolState& prev, const Pose& fr
   return FloorAndFrictionGoal(model, magnitude, near, from, handle);
 }
 
+// The bone surfaces the proxy met during one Follow, at most three (sliding along a crease
+// between two surfaces, or stopping in a corner, needs them all), each as a plane in the space of
+// the proxy's position: the tool touches surface k when its position x has x . n_k = level_k
+// (n_k the outward normal met, level_k = p . n_k - clearance at the position p where it was met).
+// Fixed storage: the step makes no heap allocation.
+class ContactPlanes {
+ public:
+  // Adds the surface met at proxy position `position` with outward unit normal `normal` and the
+  // clearance `clearance_mm` there (< 0: overlapping). A normal within ~2.5 degrees of one held
+  // replaces it (the same surface, as met now); a fourth surface replaces the oldest.
+  void Add(const Vec3& position, const Vec3& normal, double clearance_mm) {
+    const Plane plane{normal, position.dot(normal) - clearance_mm};
+    for (int k = 0; k < count_; ++k) {
+      if (planes_[static_cast<std::size_t>(k)].normal.dot(normal) > kSameNormal) {
+        planes_[static_cast<std::size_t>(k)] = plane;
+        return;
+      }
+    }
+    if (count_ == kMaxPlanes) {
+      for (int k = 1; k < kMaxPlanes; ++k)
+        planes_[static_cast<std::size_t>(k - 1)] = planes_[static_cast<std::size_t>(k)];
+      --count_;
+    }
+    planes_[static_cast<std::size_t>(count_++)] = plane;
+  }
+
+  bool empty() const { return count_ == 0; }
+
+  // The part of the displacement `way` from position `cur` that does not lead closer than
+  // kSkinMm to any surface held: the nearest x to `way` with x . n_k >= -gap_k, gap_k =
+  // max(0, cur . n_k - level_k - kSkinMm) (the distance the proxy may still close toward surface
+  // k; never negative, so x = 0 is feasible and |x - way| <= |way|: the result is bounded
+  // however the surfaces lie). A quadratic program of at most three constraints,
+  // solved exactly by trying every set of active constraints (at most 8) and keeping the
+  // nearest feasible point; zero if none is feasible. Deterministic.
+  Vec3 Admissible(const Vec3& cur, const Vec3& way) const {
+    std::array<double, kMaxPlanes> gap{};
+    for (int k = 0; k < count_; ++k) gap[static_cast<std::size_t>(k)] = std::max(0.0, Gap(k, cur));
+    return Nearest(way, gap);
+  }
+
+  // The shortest displacement from `cur` that puts the proxy at least kSkinMm outside every
+  // surface held (x . n_k >= -gap_k with the gaps of Admissible not clamped: negative where
+  // the proxy overlaps); zero if there is none (the surfaces leave no room).
+  Vec3 Separation(const Vec3& cur) const {
+    std::array<double, kMaxPlanes> gap{};
+    for (int k = 0; k < count_; ++k) gap[static_cast<std::size_t>(k)] = Gap(k, cur);
+    return Nearest(Vec3::Zero(), gap);
+  }
+
+ private:
+  struct Plane {
+    Vec3 normal = Vec3::Zero();
+    double level_mm = 0;
+  };
+  static constexpr int kMaxPlanes = 3;
+  static constexpr double kSameNormal = 0.999;
+  static constexpr double kFeasibleMm = 1e-12;
+
+  // How far the proxy at `cur` may still move toward surface k, mm (< 0: it must move away).
+  double Gap(int k, const Vec3& cur) const {
+    const Plane& p = planes_[static_cast<std::size_t>(k)];
+    return cur.dot(p.normal) - p.level_mm - kSkinMm;
+  }
+
+  // The nearest x to `way` with x . n_k >= -gap_k for every plane held: every set of active
+  // constraints is tried and the nearest feasible point kept; zero if none is feasible.
+  Vec3 Nearest(const Vec3& way, const std::array<double, kMaxPlanes>& gap) const {
+    Vec3 best = Vec3::Zero();
+    double best_d2 = std::numeric_limits<double>::infinity();
+    for (int mask = 0; mask < (1 << count_); ++mask) {
+      Vec3 x = way;
+      if (!ProjectOnto(mask, gap, &x)) continue;
+      bool feasible = true;
+      for (int k = 0; k < count_ && feasible; ++k) {
+        feasible = x.dot(planes_[static_cast<std::size_t>(k)].normal) >=
+                   -gap[static_cast<std::size_t>(k)] - kFeasibleMm;
+      }
+      const double d2 = (x - way).squaredNorm();
+      if (feasible && d2 < best_d2) {
+        best = x;
+        best_d2 = d2;
+      }
+    }
+    return best;
+  }
+
+  // Moves *x to the nearest point with x . n_k = -gap_k for the planes selected by `mask`;
+  // false if their normals are (nearly) linearly dependent.
+  bool ProjectOnto(int mask, const std::array<double, kMaxPlanes>& gap, Vec3* x) const {
+    using Cols = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxPlanes>;
+    using Gram = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxPlanes, kMaxPlanes>;
+    using Small = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxPlanes, 1>;
+    int cols = 0;
+    for (int k = 0; k < count_; ++k) cols += (mask >> k) & 1;
+    if (cols == 0) return true;
+    Cols n(3, cols);
+    Small g(cols);
+    for (int k = 0, c = 0; k < count_; ++k) {
+      if (((mask >> k) & 1) == 0) continue;
+      n.col(c) = planes_[static_cast<std::size_t>(k)].normal;
+      g(c++) = gap[static_cast<std::size_t>(k)];
+    }
+    const Gram gram = n.transpose() * n;
+    const Eigen::LDLT<Gram> ldlt(gram);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-6)) return false;
+    const Small residual = n.transpose() * *x + g;
+    *x -= n * ldlt.solve(residual);
+    return true;
+  }
+
+  std::array<Plane, kMaxPlanes> planes_{};
+  int count_ = 0;
+};
+
+// Pushes `pose` out of bone: first along the reported way out; if it still overlaps (a wedge
+// between surfaces, e.g. a shaft between acromion and humeral head), by the shortest
+// displacement that clears every surface met so far (ContactPlanes::Separation), at most
+// kReachMm. False if it is still inside after kMaxPushes tries; `pose` is then unchanged.
+// Without haptics.slide: every push along the reported way out, and a failed push-out leaves
+// the pose where the pushes took it (the earlier proxy, bit for bit).
+bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::ToolBoneHit* hit,
+             ProxyWorkspace* ws) {
+  const bool slide = model.haptics.slide;
+  const Pose start = *pose;
+  ContactPlanes met;
+  for (int k = 0; k < kMaxPushes && hit->clearance_mm < 0; ++k) {
+    met.Add(pose->position_mm, hit->normal, hit->clearance_mm);
+    Vec3 push = (kSkinMm - hit->clearance_mm) * hit->normal;
+    if (slide && k > 0) {
+      const Vec3 clear_all = met.Separation(pose->position_mm);
+      if (clear_all.squaredNorm() > 0 && clear_all.norm() <= kReachMm) push = clear_all;
+    }
+    pose->position_mm += push;
+    *hit = Clearance(model, tool, *pose, ws);
+  }
+  if (hit->clearance_mm >= 0) return true;
+  if (slide) *pose = start;  // (the earlier proxy keeps the half-pushed pose)
+  return false;
+}
+
+// Where the proxy heads from `cur` this iteration (a god-object's constrained step): the goal
+// itself while the proxy is clear of bone (clearance >= kMinAdvanceMm) or has met no surface;
+// else the goal with the part of the way into the surfaces met removed (ContactPlanes::
+// Admissible), so the proxy slides along the bone toward the goal's nearest reachable point
+// instead of zig-zagging into the bone and out again. The orientation is the goal's.
+Pose SlideGoal(const Pose& cur, const Pose& goal, const collision::ToolBoneHit& hit,
+               const ContactPlanes& planes) {
+  if (hit.bone < 0 || hit.clearance_mm >= kMinAdvanceMm || planes.empty()) return goal;
+  Pose slid = goal;
+  slid.position_mm =
+      cur.position_mm + planes.Admissible(cur.position_mm, goal.position_mm - cur.position_mm);
+  return slid;
+}
+
 // Follows the handle from `from` by conservative advancement: steps no longer than the current
-// clearance (or kMinAdvanceMm near bone), each pushed out of bone if it overlaps; stops at the
-// handle, when stuck (no progress: the handle lies behind the surface), or after kMaxIterations.
+// clearance (or kMinAdvanceMm near bone), each pushed out of bone if it overlaps. With
+// haptics.slide (else the earlier proxy): a step that cannot be pushed out is retried shorter,
+// kMaxHalvings times, and near bone each
+// step heads for the goal slid along the surfaces met so far (SlideGoal). Stops at the handle (or
+// its slid point), when stuck (no progress: the handle lies behind the surface), or after
+// kMaxIterations.
 Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const Pose& goal,
             double arm, collision::ToolBoneHit* hit, int* iterations, ProxyWorkspace* ws) {
+  const bool slide = model.haptics.slide;
   Pose cur = from;
   *hit = Clearance(model, tool, cur, ws);
   if (hit->clearance_mm < 0 && !PushOut(model, tool, &cur, hit, ws)) return cur;
+  ContactPlanes planes;
+  if (hit->bone >= 0 && hit->clearance_mm < kMinAdvanceMm) {
+    planes.Add(cur.position_mm, hit->normal, hit->clearance_mm);
+  }
   int it = 0;
   for (; it < kMaxIterations; ++it) {
-    const double remaining = Motion(cur, goal, arm);
+    const Pose target = slide ? SlideGoal(cur, goal, *hit, planes) : goal;
+    const double remaining = Motion(cur, target, arm);
     if (remaining <= kArrivedMm) break;
-    const double advance = std::max(hit->clearance_mm, kMinAdvanceMm);
-    Pose next = Interpolate(cur, goal, std::min(1.0, advance / remaining));
-    collision::ToolBoneHit h = Clearance(model, tool, next, ws);
-    if (h.clearance_mm < 0 && !PushOut(model, tool, &next, &h, ws)) break;
+    // conservative advancement: a tool clear of bone by c moves c - kSkinMm safely (the earlier
+    // proxy: c)
+    const double skin = slide ? kSkinMm : 0.0;
+    double advance = hit->clearance_mm >= kMinAdvanceMm ? hit->clearance_mm - skin : kMinAdvanceMm;
+    Pose next;
+    collision::ToolBoneHit h;
+    bool placed = false;
+    const int halvings = slide ? kMaxHalvings : 0;
+    for (int halving = 0; halving <= halvings && !placed; ++halving, advance *= 0.5) {
+      next = Interpolate(cur, target, std::min(1.0, advance / remaining));
+      h = Clearance(model, tool, next, ws);
+      const Vec3 met_at = next.position_mm;
+      const collision::ToolBoneHit met = h;
+      placed = h.clearance_mm >= 0 || PushOut(model, tool, &next, &h, ws);
+      if (placed && met.clearance_mm < 0) planes.Add(met_at, met.normal, met.clearance_mm);
+    }
+    if (!placed) break;  // stuck: every shorter step overlaps bone beyond the push-out
+    if (h.bone >= 0 && h.clearance_mm < kMinAdvanceMm) {
+      planes.Add(next.position_mm, h.normal, h.clearance_mm);
+    }
     const double progress = Motion(cur, next, arm);
     cur = next;
     *hit = h;
@@ -168,6 +344,7 @@ void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlo
                         State* state, ProxyWorkspace* ws) {
   ws->touches.clear();
   ws->iterations.fill(0);
+  ws->clearance_queries = 0;
   if (model.haptics.proxy) collision::SyncBoneQuery(*state, &ws->bones);
   for (int slot = 0; slot < kToolSlots; ++slot) {
     ToolState& tool = state->tools[static_cast<std::size_t>(slot)];

@@ -191,6 +191,125 @@ TEST(ToolProxyTest, ProxySlidesAlongTheSurfaceTowardTheHandle) {
   EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
 }
 
+// An axis-aligned box [lo, hi] as one more bone of `m` (outward-facing triangles).
+void AddBoxBone(Model* m, const std::string& name, const Vec3& lo, const Vec3& hi) {
+  BoneModel bone;
+  bone.name = name;
+  bone.surface.nodes.resize(3, 8);
+  for (int i = 0; i < 8; ++i) {
+    bone.surface.nodes.col(i) =
+        Vec3((i & 1) == 0 ? lo.x() : hi.x(), ((i >> 1) & 1) == 0 ? lo.y() : hi.y(),
+             ((i >> 2) & 1) == 0 ? lo.z() : hi.z());
+  }
+  // corners i = x + 2y + 4z; each face wound counter-clockwise seen from outside
+  bone.surface.tris = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                       {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  m->bones.push_back(bone);
+}
+
+// The burr resting on the top face z = 0 at (x, y), the hand 3 mm in; then one step with the
+// hand at `handle`: the proxy's position after that step, its resolution iterations in
+// *iterations.
+Vec3 RestThenMoveHand(Sim* r, double x, double y, const Vec3& handle, int* iterations) {
+  r->Step(BurrAt(Vec3(x, y, 5)));
+  for (int i = 0; i < 3; ++i) r->Step(BurrAt(Vec3(x, y, -3)));
+  EXPECT_NEAR(r->state.tools[0].pose.position_mm.x(), x, 1e-9);
+  EXPECT_NEAR(r->state.tools[0].pose.position_mm.z(), 0.0, 0.01);
+  r->Step(BurrAt(handle));
+  *iterations = r->ws.proxy.iterations[0];
+  return r->state.tools[0].pose.position_mm;
+}
+
+// The god-object's slide: the burr rests on a flat face with the hand 3 mm in; the hand moves
+// 2 mm along the face within one step. The proxy slides to the face straight above the handle in
+// that step, in a few resolution iterations (one per 0.25 mm of slide and one to arrive). A proxy
+// that advances 0.25 mm toward the handle and is pushed out again creeps along the face by a
+// shrinking fraction of the remaining way (~0.92 per iteration: it stops at the 96-iteration cap,
+// short of the handle).
+// A bone block with the sliding proxy on (haptics.slide).
+Model SlidingBlockBoneModel() {
+  Model m = BlockBoneModel();
+  m.haptics.slide = true;
+  return m;
+}
+
+TEST(ToolProxyTest, HandMovedAlongAFaceItPressesIntoSlidesTheProxyInAFewIterations) {
+  Sim r(SlidingBlockBoneModel());
+  int iterations = 0;
+  const Vec3 p = RestThenMoveHand(&r, 0, 1, Vec3(2, 1, -3), &iterations);
+  std::printf("slide along a face: proxy (%.6f, %.6f, %.6f) in %d iterations\n", p.x(), p.y(),
+              p.z(), iterations);
+  EXPECT_NEAR(p.x(), 2.0, 1e-6);
+  EXPECT_NEAR(p.y(), 1.0, 1e-6);
+  EXPECT_NEAR(p.z(), 0.0, 0.01);  // the burr sphere's front on the face
+  EXPECT_LE(iterations, 10);
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+}
+
+// The contrast: the earlier proxy (haptics.slide false) creeps along the face, runs into the
+// iteration cap and ends short of the handle's projection.
+TEST(ToolProxyTest, WithoutTheSlideTheProxyCreepsAlongTheFace) {
+  Sim r(BlockBoneModel());
+  int iterations = 0;
+  const Vec3 p = RestThenMoveHand(&r, 0, 1, Vec3(2, 1, -3), &iterations);
+  EXPECT_EQ(iterations, kProxyMaxIterations);
+  EXPECT_LT(p.x(), 2.0 - 1e-4);
+}
+
+// A concave corner: the burr resting on a floor is moved by the hand past a wall into the crease
+// (the hand 4 mm behind the wall and 3 mm under the floor): it slides into the crease and stops
+// there touching both faces, in about one iteration per 0.25 mm of the way (the zig-zagging proxy
+// creeps into the crease and needs several times as many).
+TEST(ToolProxyTest, PushIntoACreaseOfTwoFacesStopsInTheCrease) {
+  Model m = SlidingBlockBoneModel();                            // floor: top face z = 0
+  AddBoxBone(&m, "wall", Vec3(0, -20, -10), Vec3(20, 20, 20));  // wall: face x = 0
+  Sim r(std::move(m));
+  const double radius = r.model.instruments[0].tip_radius_mm;  // = the shaft's
+  int iterations = 0;
+  const Vec3 p = RestThenMoveHand(&r, -5, 1, Vec3(4, 1, -3), &iterations);
+  std::printf("crease: proxy (%.6f, %.6f, %.6f) in %d iterations\n", p.x(), p.y(), p.z(),
+              iterations);
+  EXPECT_NEAR(p.x(), -radius, 0.01);
+  EXPECT_NEAR(p.y(), 1.0, 1e-6);
+  EXPECT_NEAR(p.z(), 0.0, 0.01);
+  EXPECT_LE(iterations, 2 + static_cast<int>((5 - radius) / 0.25));
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+  // Coming from above the floor in one step, the burr also ends in the crease (it closes its
+  // clearance to the wall it met before the floor, not only to the nearest surface).
+  Sim above(r.model);
+  above.Step(BurrAt(Vec3(-10, 1, 5)));
+  above.Step(BurrAt(Vec3(4, 1, -3)));
+  const Vec3 q = above.state.tools[0].pose.position_mm;
+  EXPECT_NEAR(q.x(), -radius, 0.01);
+  EXPECT_NEAR(q.z(), 0.0, 0.01);
+}
+
+// The same into a corner of three faces (floor, wall x = 0, wall y = 0): the burr stops in the
+// corner touching all three.
+TEST(ToolProxyTest, PushIntoACornerOfThreeFacesStopsInTheCorner) {
+  Model m = SlidingBlockBoneModel();                              // floor: top face z = 0
+  AddBoxBone(&m, "wall_x", Vec3(0, -20, -10), Vec3(20, 20, 20));  // face x = 0
+  AddBoxBone(&m, "wall_y", Vec3(-20, 0, -10), Vec3(20, 20, 20));  // face y = 0
+  Sim r(std::move(m));
+  const double radius = r.model.instruments[0].tip_radius_mm;
+  int iterations = 0;
+  const Vec3 p = RestThenMoveHand(&r, -5, -5, Vec3(4, 3, -3), &iterations);
+  std::printf("corner: proxy (%.6f, %.6f, %.6f) in %d iterations\n", p.x(), p.y(), p.z(),
+              iterations);
+  EXPECT_NEAR(p.x(), -radius, 0.01);
+  EXPECT_NEAR(p.y(), -radius, 0.01);
+  EXPECT_NEAR(p.z(), 0.0, 0.01);
+  EXPECT_LE(iterations, 2 + static_cast<int>(std::sqrt(2.0) * (5 - radius) / 0.25));
+  EXPECT_GE(SampledClearance(r.model, r.state, 0), -0.1);
+  Sim above(r.model);  // from above the floor in one step
+  above.Step(BurrAt(Vec3(-10, -8, 5)));
+  above.Step(BurrAt(Vec3(4, 3, -3)));
+  const Vec3 q = above.state.tools[0].pose.position_mm;
+  EXPECT_NEAR(q.x(), -radius, 0.01);
+  EXPECT_NEAR(q.y(), -radius, 0.01);
+  EXPECT_NEAR(q.z(), 0.0, 0.01);
+}
+
 TEST(ToolProxyTest, HandleTeleportedThroughTheBoneDoesNotTunnel) {
   Sim r(BlockBoneModel());
   r.Step(BurrAt(Vec3(0, 0, 5)));
@@ -210,10 +329,12 @@ TEST(ToolProxyTest, ScenarioKeysAreReadAndChecked) {
   const std::string base = "name: h\nmaterials: {}\nbodies: []\n";
   const Model m =
       io::LoadScenarioFromText(base +
-                                   "haptics: {proxy: false, coupling_stiffness_n_per_mm: 0.5, "
+                                   "haptics: {proxy: false, slide: true, "
+                                   "coupling_stiffness_n_per_mm: 0.5, "
                                    "coupling_damping_n_s_per_mm: 0.001, max_force_n: 3.3}\n",
                                "h.yaml");
   EXPECT_FALSE(m.haptics.proxy);
+  EXPECT_TRUE(m.haptics.slide);
   EXPECT_EQ(m.haptics.coupling_stiffness_n_per_mm, 0.5);
   EXPECT_EQ(m.haptics.coupling_damping_n_s_per_mm, 0.001);
   EXPECT_EQ(m.haptics.max_force_n, 3.3);

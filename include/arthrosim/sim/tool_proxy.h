@@ -15,6 +15,9 @@
 
 namespace arthrosim::sim {
 
+/// Most resolution iterations of one slot in one step (then the proxy stays where it got).
+constexpr int kProxyMaxIterations = 96;
+
 /// Derived data and work lists of the proxy stage (Workspace: rebuilt from State at will).
 struct ProxyWorkspace {
   collision::BoneQueryWorld bones;
@@ -22,10 +25,15 @@ struct ProxyWorkspace {
   /// (slot, bone) pairs the proxies rest against this step, with the bone contact point.
   std::vector<ToolContact> touches;
   std::array<int, kToolSlots> iterations{0, 0};  ///< resolution iterations used (diagnostics)
+  int clearance_queries = 0;  ///< tool-bone clearance searches this step, all slots (diagnostics)
 };
 
 /// Moves each inserted slot's proxy (tools[s].pose) from its last pose toward tools[s].
-/// handle_pose, stopping at and sliding along bone surfaces, and lists the bone touches. A
+/// handle_pose, stopping at and sliding along bone surfaces, and lists the bone touches. Near
+/// bone the proxy heads for the handle with the part of the way into the bone surfaces it met
+/// this step removed (at most three surfaces: a face, a crease, a corner; a small quadratic
+/// program), so it reaches the handle's nearest reachable point in a few iterations; it stops in
+/// a corner the handle lies behind. At most kProxyMaxIterations iterations per slot. A
 /// newly inserted instrument starts at its handle if that pose is clear of bone, else at its
 /// portal. Within 6 mm of bone, against soft tissue it pressed toward the bone last step
 /// (reaction > 0.05 N), the proxy advances at most 0.5 mm per step along the push, and not at all
