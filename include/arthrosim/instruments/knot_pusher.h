@@ -35,14 +35,32 @@ std::vector<KnotRef> FindKnots(const State& state);
 /// constraint, or 0 if none.
 int TissueSideNode(const State& state, int thread);
 
-/// Knot security pull test (docs/operations.md "Knot tying"): in a copy of the threads holding
-/// only the knot's springs (tissue, anchors, stitches and tools left out), the loop node just
-/// below the knot on each limb is pulled with operations.knot_pusher.pull_force_n (N), the two
-/// in opposite directions along the line between them, for pull_time_s (s) of thread steps of
-/// the model's dt. Returns the slip (mm): how much the distance between the two knot nodes has
-/// grown, averaged over the last two steps (the staggered spring coupling alternates). `state`
-/// is not changed. Throws std::invalid_argument if `knot` does not name threads and nodes of the
-/// state.
-double KnotSlipMm(const Model& model, const State& state, const KnotRef& knot);
+/// What one pull test simulated (tests, diagnostics).
+struct KnotPullWork {
+  int threads = 0;            ///< thread pieces copied (1 if the knot ties a thread to itself)
+  int nodes = 0;              ///< thread nodes copied and stepped
+  int steps = 0;              ///< thread steps (StepThreads calls)
+  int newton_iterations = 0;  ///< summed over the steps (ThreadStepStats::newton_iterations)
+};
+
+/// Default reach of the pull test's copy along each knot thread beyond the knot's nodes, mm of
+/// rest arc length (see KnotSlipMm).
+inline constexpr double kKnotPullWindowMm = 5.0;
+
+/// Knot security pull test (docs/operations.md "Knot tying"). What is simulated: a copy of the
+/// knot's thread(s) only (thread_a and thread_b, one piece if they are the same thread), each cut
+/// to the nodes the knot touches (its knot springs' ends, the knot nodes and the nodes just below
+/// them) widened by `window_mm` of rest arc length on each side (clamped to the thread; a huge
+/// window copies the whole threads), holding only the knot's springs (tissue, anchors,
+/// stitches, tools and other threads left out; the model's fixed nodes inside the piece stay
+/// fixed). The loop node just below the knot on each limb is pulled with
+/// operations.knot_pusher.pull_force_n (N), the two in opposite directions along the line
+/// between them, for pull_time_s (s) of thread steps of the model's dt. Returns the slip (mm):
+/// how much the distance between the two knot nodes has grown, averaged over the last two
+/// steps (the staggered spring coupling alternates). `state` is not changed; `work`, if given,
+/// receives what was simulated. Throws std::invalid_argument if `knot` does not name threads and
+/// nodes of the state, a knot spring does not join the knot's threads, or window_mm < 0.
+double KnotSlipMm(const Model& model, const State& state, const KnotRef& knot,
+                  KnotPullWork* work = nullptr, double window_mm = kKnotPullWindowMm);
 
 }  // namespace arthrosim::instruments
