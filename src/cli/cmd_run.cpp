@@ -177,7 +177,7 @@ int Run(const RunArgs& a) {
   const double start_time_s = state.time_s;  // a continued run starts at its checkpoint's time
   // Thread solves that stopped before converging (max_newton_iterations or the line-search
   // floor), counted from each step's last thread solve; printed only (docs/operations.md).
-  std::int64_t thread_solves = 0, thread_unconverged = 0;
+  std::int64_t thread_solves = 0, thread_unconverged = 0, thread_substeps = 0;
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
@@ -196,6 +196,7 @@ int Run(const RunArgs& a) {
     }
     thread_solves += ws.timings.thread.solves;
     thread_unconverged += ws.timings.thread.unconverged_solves;
+    thread_substeps += ws.timings.thread.substeps;
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());
@@ -235,6 +236,10 @@ int Run(const RunArgs& a) {
     fmt::print(stderr,
                "thread solves unconverged: {} of {} (thread_solver.max_newton_iterations {})\n",
                thread_unconverged, thread_solves, model.thread_solver.max_newton_iterations);
+    if (model.thread_solver.max_substep_levels > 0) {
+      fmt::print(stderr, "thread substeps: {} (thread_solver.max_substep_levels {})\n",
+                 thread_substeps, model.thread_solver.max_substep_levels);
+    }
   }
   return kExitOk;
 }
