@@ -178,7 +178,7 @@ int Run(const RunArgs& a) {
   const double start_time_s = state.time_s;  // a continued run starts at its checkpoint's time
   // Thread solves that stopped before converging (max_newton_iterations or the line-search
   // floor), counted from each step's last thread solve; printed only (docs/operations.md).
-  std::int64_t thread_solves = 0, thread_unconverged = 0;
+  std::int64_t thread_solves = 0, thread_unconverged = 0, thread_substeps = 0;
   // The tool proxy's work (docs/contact-model.md): clearance searches and slot-steps that ran
   // into the iteration cap; printed only.
   std::int64_t proxy_queries = 0, proxy_capped = 0;
@@ -202,6 +202,7 @@ int Run(const RunArgs& a) {
     thread_unconverged += ws.timings.thread.unconverged_solves;
     proxy_queries += ws.proxy.clearance_queries;
     for (int it : ws.proxy.iterations) proxy_capped += it >= sim::kProxyMaxIterations ? 1 : 0;
+    thread_substeps += ws.timings.thread.substeps;
     source->Feedback(sim::Feedback(state));
     if (a.live) lag.Check(source->RealtimeLagS(), &state);
     if (feedback) feedback->AfterStep(state.step % every == 0, &state, source.get());
@@ -243,6 +244,10 @@ int Run(const RunArgs& a) {
                thread_unconverged, thread_solves, model.thread_solver.max_newton_iterations);
     fmt::print(stderr, "tool proxy: {} clearance queries, {} slot-steps at the {}-iteration cap\n",
                proxy_queries, proxy_capped, sim::kProxyMaxIterations);
+    if (model.thread_solver.max_substep_levels > 0) {
+      fmt::print(stderr, "thread substeps: {} (thread_solver.max_substep_levels {})\n",
+                 thread_substeps, model.thread_solver.max_substep_levels);
+    }
   }
   return kExitOk;
 }

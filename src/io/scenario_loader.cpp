@@ -166,15 +166,18 @@ void ReadContact(const YamlSection& root, Model* m) {
 void ReadThreadSolver(const YamlSection& root, Model* m) {
   if (!root.Has("thread_solver")) return;
   ThreadSolverOptions& t = m->thread_solver;
-  YamlSection s(root.reader(), root.Get("thread_solver"), "thread_solver",
-                {"contact_stiffness", "contact_margin_factor", "max_newton_iterations",
-                 "max_active_set_passes", "max_strain", "strain_limit_passes", "newton_tolerance",
-                 "max_ccd_rounds", "ccd_samples", "ccd_close_fraction", "crossing_tolerance",
-                 "compression_stiffness_fraction", "speed_barrier_stiffness", "exclusion_factor"});
+  YamlSection s(
+      root.reader(), root.Get("thread_solver"), "thread_solver",
+      {"contact_stiffness", "contact_margin_factor", "max_newton_iterations", "max_substep_levels",
+       "max_active_set_passes", "max_strain", "strain_limit_passes", "newton_tolerance",
+       "max_ccd_rounds", "ccd_samples", "ccd_close_fraction", "crossing_tolerance",
+       "compression_stiffness_fraction", "speed_barrier_stiffness", "exclusion_factor"});
   t.contact_stiffness_n_per_mm = s.Positive("contact_stiffness", t.contact_stiffness_n_per_mm);
   t.contact_margin_factor = s.NonNegative("contact_margin_factor", t.contact_margin_factor);
   t.max_newton_iterations = static_cast<int>(
       s.Integer("max_newton_iterations", t.max_newton_iterations, 1, ranges::kMaxPasses));
+  t.max_substep_levels = static_cast<int>(
+      s.Integer("max_substep_levels", t.max_substep_levels, 0, kMaxThreadSubstepLevels));
   t.max_active_set_passes = static_cast<int>(
       s.Integer("max_active_set_passes", t.max_active_set_passes, 1, ranges::kMaxPasses));
   t.max_strain = s.Positive("max_strain", t.max_strain);

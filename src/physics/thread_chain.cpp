@@ -443,27 +443,108 @@ void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspac
        {&s.group_alpha, &s.group_e0, &s.group_e1, &s.group_slope, &s.group_step_max})
     v->reserve(nodes);
   s.step_kept.reserve(3 * nodes);
+  // Adaptive substeps: one saved start per level that may split.
+  s.level_x.resize(kMaxThreadSubstepLevels);
+  s.level_v.resize(kMaxThreadSubstepLevels);
+  for (int level = 0; level < kMaxThreadSubstepLevels; ++level) {
+    s.level_x[level].resize(3, static_cast<Eigen::Index>(nodes));
+    s.level_v[level].resize(3, static_cast<Eigen::Index>(nodes));
+  }
 }
 
-void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
-                 ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
-                 ThreadWorkspace* ws) {
+namespace {
+
+// One (sub)step of dt_s from the threads' current states: every stage, stats into *stats.
+void StepOnce(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
+              ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
+              ThreadWorkspace* ws, ThreadStepStats* stats) {
   const ThreadSolverParams& p = ws->params;
-  const int nt = static_cast<int>(threads.size());
-  if (static_cast<int>(states->size()) != nt || static_cast<int>(ws->rest.size()) != nt)
-    throw std::invalid_argument("StepThreads: threads, states and workspace differ in size");
-  ws->last = ThreadStepStats{};
-  if (nt == 0) return;
   System& s = ws->scratch;
   NumberNodes(threads, *states, ws->rest, dt_s, gravity_mm_s2, &s);
   AddInternalTerms(threads, ws->rest, p, &s);
   AddExternalTerms(ws->rest, contacts, springs, &s);
   AddSpeedBarriers(threads, p, &s);
   AddProximityContacts(threads, ws->rest, p, &s);
-  SolveWithContinuousDetection(threads, ws->rest, p, &s, &ws->last);
-  RevertCrossingThreads(threads, ws->rest, p, &s, &ws->last);
-  WriteBack(threads, s, states, &ws->last);
+  SolveWithContinuousDetection(threads, ws->rest, p, &s, stats);
+  RevertCrossingThreads(threads, ws->rest, p, &s, stats);
+  WriteBack(threads, s, states, stats);
   FillForceOutputs(s, contacts, springs);
+}
+
+// Copies every node's position and velocity between the states and level `level`'s buffers
+// (global numbering; sizes kept, so no allocation once InitThreadWorkspace reserved them).
+void SaveLevel(const std::vector<ThreadState>& states, int level, System* s) {
+  Points& x = s->level_x[level];
+  Points& v = s->level_v[level];
+  int total = 0;
+  for (const ThreadState& st : states) total += static_cast<int>(st.x.cols());
+  x.resize(3, total);
+  v.resize(3, total);
+  int g = 0;
+  for (const ThreadState& st : states) {
+    const int n = static_cast<int>(st.x.cols());
+    x.middleCols(g, n) = st.x;
+    v.middleCols(g, n) = st.v;
+    g += n;
+  }
+}
+
+void RestoreLevel(const System& s, int level, std::vector<ThreadState>* states) {
+  int g = 0;
+  for (ThreadState& st : *states) {
+    const int n = static_cast<int>(st.x.cols());
+    st.x = s.level_x[level].middleCols(g, n);
+    st.v = s.level_v[level].middleCols(g, n);
+    g += n;
+  }
+}
+
+// Adaptive substeps: the step of dt_s at substep level `level`; if any of its solves ends
+// unconverged and a deeper level is allowed, the threads go back to the step's start and it is
+// redone as two steps of dt_s / 2 (the contact planes and spring anchors held as given). Kept
+// (sub)steps add their stats into *total; a redone one adds its Newton iterations and its
+// solves as discarded.
+void StepAdaptive(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
+                  ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
+                  ThreadWorkspace* ws, int level, ThreadStepStats* total) {
+  const bool may_split = level < ws->params.max_substep_levels;
+  if (may_split) SaveLevel(*states, level, &ws->scratch);
+  ThreadStepStats st;
+  StepOnce(threads, dt_s, gravity_mm_s2, contacts, springs, states, ws, &st);
+  total->newton_iterations += st.newton_iterations;
+  if (may_split && st.unconverged_solves > 0) {
+    total->discarded_solves += st.solves;
+    RestoreLevel(ws->scratch, level, states);
+    for (int half = 0; half < 2; ++half)
+      StepAdaptive(threads, 0.5 * dt_s, gravity_mm_s2, contacts, springs, states, ws, level + 1,
+                   total);
+    return;
+  }
+  total->solves += st.solves;
+  total->unconverged_solves += st.unconverged_solves;
+  total->contact_pairs = std::max(total->contact_pairs, st.contact_pairs);
+  total->frozen_nodes += st.frozen_nodes;
+  total->speed_capped_nodes += st.speed_capped_nodes;
+  total->max_newton_per_solve = std::max(total->max_newton_per_solve, st.max_newton_per_solve);
+  total->strain_limited_segments += st.strain_limited_segments;
+  ++total->substeps;
+}
+
+}  // namespace
+
+void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
+                 ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
+                 ThreadWorkspace* ws) {
+  const int nt = static_cast<int>(threads.size());
+  if (static_cast<int>(states->size()) != nt || static_cast<int>(ws->rest.size()) != nt)
+    throw std::invalid_argument("StepThreads: threads, states and workspace differ in size");
+  ws->last = ThreadStepStats{};
+  if (nt == 0) return;
+  const int levels = ws->params.max_substep_levels;
+  if (levels < 0 || levels > kMaxThreadSubstepLevels)
+    throw std::invalid_argument("StepThreads: max_substep_levels must be in [0, " +
+                                std::to_string(kMaxThreadSubstepLevels) + "]");
+  StepAdaptive(threads, dt_s, gravity_mm_s2, contacts, springs, states, ws, 0, &ws->last);
 }
 
 double ThreadEnergy(const ThreadModel& model, const ThreadRest& rest, const ThreadState& state,

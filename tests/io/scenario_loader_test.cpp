@@ -252,7 +252,7 @@ TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
            "refactor_iterations: 0}\n"
            "contact: {tissue_tissue_contacts: false, bone_tip_contacts: false}\n"
            "thread_solver: {contact_stiffness: 50, max_strain: 0.02, max_ccd_rounds: 0, "
-           "ccd_samples: 4, exclusion_factor: 2, newton_tolerance: 1e-6}"),
+           "ccd_samples: 4, exclusion_factor: 2, newton_tolerance: 1e-6, max_substep_levels: 3}"),
       Path());
   EXPECT_EQ(m.solver.product, SystemProduct::kMatrixFree);
   EXPECT_EQ(m.solver.preconditioner, Preconditioner::kBlockJacobi);
@@ -266,6 +266,7 @@ TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
   EXPECT_EQ(m.thread_solver.ccd_samples, 4);
   EXPECT_DOUBLE_EQ(m.thread_solver.exclusion_factor, 2.0);
   EXPECT_DOUBLE_EQ(m.thread_solver.newton_tolerance_mm, 1e-6);
+  EXPECT_EQ(m.thread_solver.max_substep_levels, 3);
   EXPECT_EQ(m.thread_solver.max_newton_iterations, ThreadSolverOptions{}.max_newton_iterations);
   const Model d = LoadScenarioFromText(Valid(), Path());
   EXPECT_EQ(d.solver.preconditioner, Preconditioner::kRestCholesky);
@@ -285,6 +286,8 @@ TEST_F(ScenarioLoaderTest, BadOptionValuesNameTheField) {
   EXPECT_EQ(LoadError(with("contact: {bone_tip_contacts: maybe}")).field(),
             "contact.bone_tip_contacts");
   EXPECT_EQ(LoadError(with("thread_solver: {max_strain: 0}")).field(), "thread_solver.max_strain");
+  EXPECT_EQ(LoadError(with("thread_solver: {max_substep_levels: 5}")).field(),
+            "thread_solver.max_substep_levels");
   EXPECT_EQ(LoadError(with("thread_solver: {ccd_samples: 0}")).field(),
             "thread_solver.ccd_samples");
   EXPECT_EQ(LoadError(with("thread_solver: {compression_stiffness_fraction: 2}")).field(),

@@ -30,9 +30,8 @@ TEST(ThreadAllocation, CounterSeesAllocations) {
 
 // Two crossing threads falling onto a floor (point contacts), one pulled by a spring, with
 // self- and thread-thread contacts: every stage of the step runs.
-TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
-  if (!test_support::kCountingNew)
-    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+// With adaptive substeps (max_substep_levels 2), the split steps do not allocate either.
+void SteadyState(int substep_levels) {
   ThreadModel a = PolylineThread({{0, 0, 1}, {30, 0, 1}}, 40);
   a.fixed_nodes = {0};
   a.bend_stiffness_n_mm2 = 0.5;
@@ -43,6 +42,7 @@ TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
   std::vector<ThreadState> states{RestState(a), RestState(b)};
   ThreadWorkspace ws;
   InitThreadWorkspace(models, &ws);
+  ws.params.max_substep_levels = substep_levels;
   ContactSet floor;
   for (int t = 0; t < 2; ++t) {
     for (int i = 0; i < states[t].x.cols(); ++i) floor.push_back(testing::FloorContact(t, i, 10));
@@ -50,7 +50,7 @@ TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
   SpringSet springs{testing::NodeSpring(1, 30, 2)};
   const Vec3 gravity(0, 0, -units::kStandardGravityMmS2);
   long allocations = 0;
-  int pairs = 0, iterations = 0;
+  int pairs = 0, iterations = 0, substeps = 0;
   for (int step = 0; step < 60; ++step) {
     springs[0].anchor_mm = Vec3(15 + 5 * std::sin(0.1 * step), 15, 3);
     const long before = test_support::AllocationCount();
@@ -58,11 +58,27 @@ TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
     if (step > 0) allocations += test_support::AllocationCount() - before;
     pairs = std::max(pairs, ws.last.contact_pairs);
     iterations += ws.last.newton_iterations;
+    substeps += ws.last.substeps;
   }
   EXPECT_EQ(allocations, 0) << "heap allocations in 59 steady-state steps";
   EXPECT_GT(pairs, 0) << "the scene should exercise thread-thread contacts";
-  std::printf("allocations after step 0: %ld; max contact pairs %d; Newton iterations %d\n",
-              allocations, pairs, iterations);
+  if (substep_levels > 0) EXPECT_GT(substeps, 60) << "the scene should split steps";
+  std::printf(
+      "substep levels %d: allocations after step 0: %ld; max contact pairs %d; Newton iterations "
+      "%d; substeps %d\n",
+      substep_levels, allocations, pairs, iterations, substeps);
+}
+
+TEST(ThreadAllocation, SteadyStateStepDoesNotAllocate) {
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  SteadyState(0);
+}
+
+TEST(ThreadAllocation, SteadyStateSubstepsDoNotAllocate) {
+  if (!test_support::kCountingNew)
+    GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  SteadyState(2);
 }
 
 }  // namespace

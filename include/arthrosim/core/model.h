@@ -210,12 +210,19 @@ struct ContactOptions {
   bool bone_tip_contacts = true;
 };
 
+/// Largest ThreadSolverOptions::max_substep_levels (16 substeps per step).
+inline constexpr int kMaxThreadSubstepLevels = 4;
+
 /// Suture thread solver options (scenario section `thread_solver:`).
 struct ThreadSolverOptions {
   double contact_stiffness_n_per_mm = 100.0;  ///< segment-segment penalty, N/mm
   /// Segment pairs within (1 + this) contact distances at the start of the step get a contact.
   double contact_margin_factor = 1.0;
   int max_newton_iterations = 8;  ///< per solve
+  /// Adaptive substeps: a step whose thread solve ends unconverged is redone from its start as
+  /// two steps of dt / 2, recursively up to this many levels (at most 2^levels substeps); the
+  /// contact planes and spring anchors are held at the step's values. 0 = off.
+  int max_substep_levels = 0;
   int max_active_set_passes = 4;  ///< contact active-set re-solves per Newton iteration
   /// Strain limit applied after the solve (a braided suture fails at ~5 % strain).
   double max_strain = 0.01;

@@ -69,13 +69,15 @@ struct ThreadRest {
 
 /// What the last StepThreads did (diagnostics, benchmarks).
 struct ThreadStepStats {
-  int newton_iterations = 0;        ///< over all solves of the step
-  int solves = 0;                   ///< 1 + re-solves after continuous detection
-  int contact_pairs = 0;            ///< segment-segment contacts in the final solve
-  int frozen_nodes = 0;             ///< nodes reverted by the crossing fail-safe
-  int speed_capped_nodes = 0;       ///< nodes whose stored velocity was clamped to the cap
-  int max_newton_per_solve = 0;     ///< largest Newton iteration count of one solve
-  int unconverged_solves = 0;       ///< solves stopped by max_newton_iterations
+  int newton_iterations = 0;     ///< over all solves of the step, discarded ones included
+  int solves = 0;                ///< per kept (sub)step: 1 + re-solves after continuous detection
+  int contact_pairs = 0;         ///< segment-segment contacts in the final solve
+  int frozen_nodes = 0;          ///< nodes reverted by the crossing fail-safe
+  int speed_capped_nodes = 0;    ///< nodes whose stored velocity was clamped to the cap
+  int max_newton_per_solve = 0;  ///< largest Newton iteration count of one solve
+  int unconverged_solves = 0;    ///< solves stopped by max_newton_iterations (kept substeps)
+  int substeps = 0;              ///< (sub)steps kept: 1 unless adaptive substeps split it
+  int discarded_solves = 0;      ///< solves of (sub)steps redone as two halves
   int strain_limited_segments = 0;  ///< segments shortened to (1 + max_strain) L0
 };
 
@@ -99,6 +101,10 @@ void InitThreadWorkspace(const std::vector<ThreadModel>& threads, ThreadWorkspac
 /// whose target is kThread (others are ignored), self- and thread-thread collision. Fills the
 /// force outputs of the thread contacts/springs (N, from the end-of-step positions). Fixed nodes
 /// keep their position with zero velocity; dead nodes (node_alive == 0) are left untouched.
+/// With ws->params.max_substep_levels > 0, a step whose solve ends unconverged is redone from
+/// its start as two steps of dt_s / 2, recursively (contacts and spring anchors held); the force
+/// outputs are then those of the last substep. Throws std::invalid_argument if the levels are
+/// outside [0, kMaxThreadSubstepLevels].
 void StepThreads(const std::vector<ThreadModel>& threads, double dt_s, const Vec3& gravity_mm_s2,
                  ContactSet* contacts, SpringSet* springs, std::vector<ThreadState>* states,
                  ThreadWorkspace* ws);

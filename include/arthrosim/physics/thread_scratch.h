@@ -94,6 +94,9 @@ struct ThreadScratch {
   std::vector<double> tri_target;
   std::vector<int> tri_chain;  ///< first stretch term of each chain, then the term count
   std::vector<double> tri_w;   ///< inverse mass per node, 0 for nodes that do not move, 1/kg
+  // Adaptive substeps: the start of the (sub)step at each substep level, positions and
+  // velocities of every node (global numbering), restored when its solve ends unconverged.
+  std::vector<Points> level_x, level_v;
 };
 
 }  // namespace arthrosim::physics
