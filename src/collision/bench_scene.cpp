@@ -90,8 +90,10 @@ Model MakeBenchmarkModel() {
   // Supraspinatus resting on the humeral head (its lowest nodes slightly inside), deltoid above.
   soft("supraspinatus", Vec3(-20, -12, 21.5), Vec3(20, 12, 29.5), 12, 8, 4);
   soft("deltoid", Vec3(-18, -12, 33), Vec3(18, 12, 39), 10, 6, 3);
-  m.bones.push_back(BoneModel{"humerus", "", Ellipsoid(Vec3::Zero(), Vec3(22, 22, 22), 60, 51), 1});
-  m.bones.push_back(BoneModel{"acromion", "", Ellipsoid(Vec3(0, 0, 44), Vec3(14, 8, 3), 11, 7), 2});
+  m.bones.push_back(
+      BoneModel{"humerus", "", Ellipsoid(Vec3::Zero(), Vec3(22, 22, 22), 60, 51), 1, {}, {}});
+  m.bones.push_back(
+      BoneModel{"acromion", "", Ellipsoid(Vec3(0, 0, 44), Vec3(14, 8, 3), 11, 7), 2, {}, {}});
   for (int t = 0; t < 2; ++t) {
     ThreadModel th;
     th.name = t == 0 ? "suture_a" : "suture_b";

@@ -28,7 +28,8 @@ SoftBodyModel Block(const char* name, const Vec3& lo, const Vec3& hi, int nx, in
 // A closed box surface (12 triangles) as a bone.
 BoneModel BoxBone(const Vec3& lo, const Vec3& hi) {
   const mesh::TetMesh cube = BoxTets(lo, hi, 1, 1, 1);
-  return BoneModel{"bone", "", mesh::TriMesh{cube.nodes, BoundaryTriangles(cube.tets, {})}, 1};
+  return BoneModel{"bone", "", mesh::TriMesh{cube.nodes, BoundaryTriangles(cube.tets, {})},
+                   1,      {}, {}};
 }
 
 // Stand-in for the solvers: Gauss-Seidel projection of the contact points onto their planes
@@ -295,7 +296,7 @@ TEST(ContactGeneration, SoftSoftAndBoneTipBoundsNeverChangeContacts) {
     spike.nodes.col(k + 1) = tip + Vec3(k == 0 || k == 3 ? -2 : 2, k < 2 ? -2 : 2, -30);
   }
   spike.tris = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}, {1, 4, 3}, {1, 3, 2}};
-  model.bones.push_back(BoneModel{"spur", "", spike, 1});
+  model.bones.push_back(BoneModel{"spur", "", spike, 1, {}, {}});
   State state = MakeInitialState(model);
   const std::vector<Points> rest = Positions(state);
   CollisionParams params;

@@ -207,7 +207,7 @@ std::pair<double, double> SheetOnSpike(bool bone_tips) {
   spike.nodes.col(3) = tip + Vec3(w, w, -h);
   spike.nodes.col(4) = tip + Vec3(-w, w, -h);
   spike.tris = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}, {1, 4, 3}, {1, 3, 2}};
-  model.bones.push_back(BoneModel{"spur", "", spike, 1});
+  model.bones.push_back(BoneModel{"spur", "", spike, 1, {}, {}});
   State state = MakeInitialState(model);
   sim::Workspace ws;
   sim::BuildWorkspace(model, state, &ws);

@@ -62,7 +62,9 @@ void SteadyState(int substep_levels) {
   }
   EXPECT_EQ(allocations, 0) << "heap allocations in 59 steady-state steps";
   EXPECT_GT(pairs, 0) << "the scene should exercise thread-thread contacts";
-  if (substep_levels > 0) EXPECT_GT(substeps, 60) << "the scene should split steps";
+  if (substep_levels > 0) {
+    EXPECT_GT(substeps, 60) << "the scene should split steps";
+  }
   std::printf(
       "substep levels %d: allocations after step 0: %ld; max contact pairs %d; Newton iterations "
       "%d; substeps %d\n",
