@@ -30,15 +30,8 @@ def radii():
 
 
 def geometry():
-    occ = gmsh.model.occ
     r_in, r_out = radii()
-    outer = occ.addSphere(0, 0, 0, r_out)
-    inner = occ.addSphere(0, 0, 0, r_in)
-    shell, _ = occ.cut([(3, outer)], [(3, inner)])
-    x0, x1 = BURSA_X
-    box = occ.addBox(x0, -BURSA_HALF_W, 0.0, x1 - x0, 2 * BURSA_HALF_W, r_out + 1.0)
-    out, _ = occ.intersect(shell, [(3, box)])
-    return base.single_volume(out)
+    return base.single_volume(base.shell_patch(r_in, r_out, BURSA_X, BURSA_HALF_W))
 
 
 def mesh():

@@ -144,6 +144,20 @@ def footprint_center():
     return gt_point(0.0, FOOTPRINT_ML / 2)
 
 
+def shell_patch(r_in, r_out, x_range, half_w):
+    """The part of the spherical shell r_in..r_out (mm) about the origin over the box x in
+    x_range, |y| <= half_w, z >= 0 (the cuff's and the bursa's shape over the head); OCC
+    dimtags of the intersection."""
+    occ = gmsh.model.occ
+    outer = occ.addSphere(0, 0, 0, r_out)
+    inner = occ.addSphere(0, 0, 0, r_in)
+    shell, _ = occ.cut([(3, outer)], [(3, inner)])
+    x0, x1 = x_range
+    box = occ.addBox(x0, -half_w, 0.0, x1 - x0, 2 * half_w, r_out + 1.0)
+    out, _ = occ.intersect(shell, [(3, box)])
+    return out
+
+
 def single_volume(out):
     """The tag of the one volume a boolean operation gave (`out`), after synchronizing."""
     gmsh.model.occ.synchronize()
@@ -232,13 +246,7 @@ def cuff_geometry():
     """Tendon (spherical shell patch over the head) and muscle (loft of sections), fragmented
     so the two volumes share one conforming interface face. Returns (muscle, tendon) tags."""
     occ = gmsh.model.occ
-    r_in, r_out = HEAD_R + CUFF_GAP, HEAD_R + CUFF_GAP + TENDON_T
-    outer = occ.addSphere(0, 0, 0, r_out)
-    inner = occ.addSphere(0, 0, 0, r_in)
-    shell, _ = occ.cut([(3, outer)], [(3, inner)])
-    x0, x1 = TENDON_X
-    box = occ.addBox(x0, -TENDON_HALF_W, 0.0, x1 - x0, 2 * TENDON_HALF_W, r_out + 1.0)
-    tendon, _ = occ.intersect(shell, [(3, box)])
+    tendon = shell_patch(HEAD_R + CUFF_GAP, HEAD_R + CUFF_GAP + TENDON_T, TENDON_X, TENDON_HALF_W)
     assert len(tendon) == 1
     wires = [sector_wire(*tendon_section())] + [sector_wire(*s) for s in MUSCLE_SECTIONS]
     muscle = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
