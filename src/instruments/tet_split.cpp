@@ -335,16 +335,14 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
   }
   std::sort(split.begin(), split.end());
   split.erase(std::unique(split.begin(), split.end()), split.end());
-  auto position = [&](Id v) -> Vec3 {
-    if (v >= 0) return sb.x.col(v);
+  // Where piece corner v lies in `points` (the current or the rest positions).
+  auto corner = [&](const Points& points, Id v) -> Vec3 {
+    if (v >= 0) return points.col(v);
     const CutEdge& c = cuts[static_cast<std::size_t>(-1 - v)];
-    return (1.0 - c.t) * sb.x.col(c.a) + c.t * sb.x.col(c.b);
+    return (1.0 - c.t) * points.col(c.a) + c.t * points.col(c.b);
   };
-  auto rest_position = [&](Id v) -> Vec3 {
-    if (v >= 0) return sb.x_rest.col(v);
-    const CutEdge& c = cuts[static_cast<std::size_t>(-1 - v)];
-    return (1.0 - c.t) * sb.x_rest.col(c.a) + c.t * sb.x_rest.col(c.b);
-  };
+  auto position = [&](Id v) { return corner(sb.x, v); };
+  auto rest_position = [&](Id v) { return corner(sb.x_rest, v); };
   // 4. Pieces. A crossed tet is cut by the plane through its on-plane nodes and edge points
   // into one piece per side (a tet, a pyramid or a prism, each split into tets); a rim tet is
   // bisected at its cut edges one after the other in cut order. A quad on a face of the
