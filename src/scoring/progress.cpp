@@ -82,7 +82,10 @@ void CriterionProgress::OnEvent(const Model& model, const Event& e, std::int64_t
   if (e.kind != c_->event || !Allowed(*step_, e.tool)) return;
   last_candidate_ = index;
   last_why_ = EventMismatch(model, *c_, e);
-  if (!last_why_.empty()) return;
+  if (!last_why_.empty()) {
+    last_rejection_ = last_why_;
+    return;
+  }
   used_ = index;
   if (++matched_ == c_->count) met_s_ = e.time_s;
 }

@@ -59,6 +59,8 @@ class CriterionProgress {
   bool any_candidate() const { return last_candidate_ >= 0; }
   /// event: why the last candidate did not match ("" if it did).
   const std::string& last_mismatch() const { return last_why_; }
+  /// event: why the last candidate that did not match failed ("" if every candidate matched).
+  const std::string& last_rejection() const { return last_rejection_; }
   /// bone_removed: volume removed since the first frame, mm3, as of the last frame seen.
   double removed_mm3() const { return last_removed_ - first_removed_; }
   /// in_view: seconds the landmark was in view until the criterion was met.
@@ -72,7 +74,7 @@ class CriterionProgress {
   double met_s_ = kNoTime;
   int matched_ = 0;
   std::int64_t used_ = -1, last_candidate_ = -1;
-  std::string last_why_;
+  std::string last_why_, last_rejection_;
   bool have_frame_ = false;
   double first_removed_ = 0, last_removed_ = 0;
   double prev_t_s_ = 0, seen_s_ = 0, first_seen_s_ = kNoTime;

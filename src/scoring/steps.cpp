@@ -35,6 +35,9 @@ CriterionOutcome EventCriterion(const PlanStep& step, const Criterion& c, const 
     out.why = fmt::format("no '{}' by {}", c.event, fmt::join(step.instruments, " or "));
   } else if (progress.matched() > 0) {
     out.why = fmt::format("{} of {} '{}' done", progress.matched(), c.count, c.event);
+    // An instructor wants to know why the others did not count (a bite too close to the edge).
+    if (!progress.last_rejection().empty())
+      out.why += fmt::format("; another not counted: {}", progress.last_rejection());
   } else {
     out.why = fmt::format("'{}' {}", c.event, progress.last_mismatch());
   }

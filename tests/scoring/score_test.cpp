@@ -104,6 +104,25 @@ TEST(Score, AnchorAngleOutsideBandFailsTheStep) {
   EXPECT_FALSE(r.passed);
 }
 
+// A step that needs two events, with one on target and one 10 mm off: the reason says why the
+// other did not count (an instructor sees "the second bite was too close", not only "1 of 2").
+TEST(Score, AnUncountedEventIsNamedInTheReason) {
+  SynthSpec spec;
+  spec.stray_hole_frame = 55;
+  const std::string path = testing::TestDir("two_holes") + "/run.h5";
+  testing::WriteSynthRun(path, spec);
+  const Model model = testing::MakeSynthModel();
+  std::string text = testing::SynthPlanText();
+  const std::string one = "landmark: site, within: 3,";
+  ASSERT_NE(text.find(one), std::string::npos);
+  text.replace(text.find(one), one.size(), "landmark: site, within: 3, count: 2,");
+  const Plan plan = LoadPlanFromText(text, "synth.yaml", &model);
+  const ScoreReport r = Evaluate(plan, ReadRunData(path, model), {});
+  EXPECT_FALSE(Step(r, "hole").completed);
+  EXPECT_EQ(Step(r, "hole").reason,
+            "not done: 1 of 2 'hole' done; another not counted: 10.0 mm from site (allowed 3 mm)");
+}
+
 TEST(Score, HoleAwayFromTheSiteFailsPositionError) {
   SynthSpec spec;
   spec.hole_offset_mm = 5;
