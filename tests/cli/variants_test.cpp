@@ -6,9 +6,12 @@
 //  - novice_damage: the shaver in the protected muscle belly, the burr on the articular surface
 //    outside every target, both before the diagnostic look is done;
 //  - novice_economy (with its trainee noise): the expert's steps at half speed with tremor,
-//    overshoot and hesitation, scored with the expert run as reference.
+//    overshoot and hesitation, scored with the expert run as reference;
+//  - novice_bite: the second limb passed ~4.5 mm from the torn edge (too close);
+//  - novice_knot: the knot thrown but never pushed down onto its target.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -72,6 +75,21 @@ int CountViolations(const ScoreReport& r, const std::string& kind, const std::st
 
 bool Contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
+}
+
+// The number after "key=" in an event's detail, or NaN.
+double DetailValue(const Event& e, const std::string& key) {
+  const std::size_t at = (" " + e.detail).find(" " + key + "=");
+  if (at == std::string::npos) return std::nan("");
+  return std::atof(e.detail.c_str() + at + key.size() + 1);
+}
+
+// The run's events of `kind` (in order).
+std::vector<const Event*> EventsOf(const std::string& run, const std::string& kind) {
+  std::vector<const Event*> out;
+  for (const Event& e : RunOf(run).events)
+    if (e.kind == kind) out.push_back(&e);
+  return out;
 }
 
 TEST(TraineeVariants, OrderPunchesTheHoleBeforeTheFootprintIsPrepared) {
@@ -146,6 +164,53 @@ TEST(TraineeVariants, EconomyTakesLongerPathsAndTwiceTheTime) {
   // The same steps are done: an economy trainee is slow, not wrong.
   for (const char* id : {"biceps_tenotomy", "acromioplasty", "anchor_hole", "anchor"})
     EXPECT_TRUE(Step(economy, id).completed) << id << ": " << Step(economy, id).reason;
+}
+
+TEST(TraineeVariants, BiteTooCloseToTheTornEdgeFailsTheSuturePass) {
+  const ScoreReport expert = Score("expert");
+  ASSERT_TRUE(Step(expert, "suture_passing").passed) << Step(expert, "suture_passing").reason;
+
+  const ScoreReport bite = Score("novice_bite");
+  const std::vector<const Event*> passes = EventsOf("novice_bite", "suture_pass");
+  ASSERT_EQ(passes.size(), 2u) << "both limbs are passed, one of them too close";
+  const double first_mm = DetailValue(*passes[0], "bite_mm");
+  const double second_mm = DetailValue(*passes[1], "bite_mm");
+  std::printf("novice bite: bites %.2f / %.2f mm from the torn edge\n", first_mm, second_mm);
+  EXPECT_GE(first_mm, 10.0) << "the first bite is the expert's";
+  EXPECT_LE(first_mm, 15.0);
+  EXPECT_LT(second_mm, 6.0) << "the trainee's bite, ~4.5 mm from the edge";
+  const StepResult& step = Step(bite, "suture_passing");
+  EXPECT_FALSE(step.passed);
+  EXPECT_TRUE(Contains(step.reason, "bite_mm")) << step.reason;
+  EXPECT_FALSE(bite.passed);
+  EXPECT_LT(bite.domains.at("repair_quality"), expert.domains.at("repair_quality"));
+  // Before the passes it is the expert's repair.
+  for (const char* id : {"debridement", "acromioplasty", "anchor_hole", "anchor"})
+    EXPECT_TRUE(Step(bite, id).passed) << id << ": " << Step(bite, id).reason;
+}
+
+TEST(TraineeVariants, KnotLeftAboveItsTargetIsNotSeated) {
+  const ScoreReport expert = Score("expert");
+  ASSERT_TRUE(Step(expert, "knot").passed) << Step(expert, "knot").reason;
+  const std::vector<const Event*> seated = EventsOf("expert", "knot_seated");
+  ASSERT_EQ(seated.size(), 1u);
+
+  const ScoreReport knot = Score("novice_knot");
+  const std::vector<const Event*> thrown = EventsOf("novice_knot", "knot");
+  ASSERT_EQ(thrown.size(), 1u) << "the half hitch is thrown as the expert throws it";
+  EXPECT_TRUE(EventsOf("novice_knot", "knot_seated").empty());
+  // Where the knot stays: its nodes on each limb against those the expert's knot is seated on
+  // (1 mm of limb per node).
+  for (const char* key : {"node_a", "node_b"}) {
+    const double left = DetailValue(*thrown[0], key), target = DetailValue(*seated[0], key);
+    std::printf("novice knot: %s at %.0f, the expert's seated at %.0f\n", key, left, target);
+    EXPECT_GE(left - target, 2.0) << key;
+  }
+  const StepResult& step = Step(knot, "knot");
+  EXPECT_FALSE(step.passed);
+  EXPECT_TRUE(Contains(step.reason, "knot_seated")) << step.reason;
+  EXPECT_FALSE(knot.passed);
+  EXPECT_TRUE(Step(knot, "suture_passing").passed) << Step(knot, "suture_passing").reason;
 }
 
 }  // namespace
