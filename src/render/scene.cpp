@@ -199,8 +199,9 @@ void AppendBones(const Model& model, const State& state, Scene* scene) {
     const mesh::TriMesh& now = state.bones[i].surface;
     const mesh::TriMesh& initial = bone.surface;
     // geometry memoised: a bone changes only when burred or drilled
-    SceneMesh mesh = *CachedBoneMesh(
+    const std::shared_ptr<const SceneMesh> whole = CachedBoneMesh(
         now, initial.nodes, [&] { return BoneGeometry(now, initial, "bone '" + bone.name + "'"); });
+    SceneMesh mesh = *whole;
     mesh.name = bone.name;
     mesh.layer = MeshLayer::kBone;
     mesh.material = TissueMaterial(mesh.name, true);
@@ -209,12 +210,13 @@ void AppendBones(const Model& model, const State& state, Scene* scene) {
       continue;
     }
     // Tissues of their own (cartilage, labrum): one mesh each after the bone's, so each has its
-    // material and its id; the parts are open surfaces (no back-face culling).
+    // material and its id; the parts are open surfaces, culled as the whole bone is.
     const std::vector<std::int8_t> labels = mesh::TriangleTissues(initial, bone.tri_tissue, now);
     for (std::int8_t label = mesh::kBoneTissue; label < static_cast<int>(bone.tissues.size());
          ++label) {
       SceneMesh part = TissuePart(mesh, labels, label);
       part.layer = MeshLayer::kBone;
+      part.whole = whole;
       if (label == mesh::kBoneTissue) {
         part.name = bone.name;
         part.material = mesh.material;

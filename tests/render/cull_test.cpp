@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
+
 #include "surface_cache.h"
 #include "test_scene.h"
 
@@ -51,6 +53,26 @@ TEST(CullTest, BackFacesHiddenOnlyFromOutsideBeyondTheNearPlane) {
   SceneMesh open = s;
   open.closed = false;
   EXPECT_FALSE(BackFacesHidden(open, Vec3(0, 0, 30), 1.0));
+}
+
+// A bone's tissue part (here the upper half of the sphere, an open surface) is culled as its
+// closed whole is: from outside beyond the near plane, not from inside; without the whole it
+// never is (an open surface alone may show its back faces).
+TEST(CullTest, AnOpenPartOfAClosedSurfaceIsCulledAsTheWholeIs) {
+  const auto whole = std::make_shared<const SceneMesh>(Sphere());
+  SceneMesh part;
+  part.vertices = whole->vertices;
+  for (std::size_t t = 0; t + 2 < whole->indices.size(); t += 3) {
+    if (whole->vertices[whole->indices[t]].pos[2] < 0) continue;
+    for (std::size_t k = t; k < t + 3; ++k) part.indices.push_back(whole->indices[k]);
+  }
+  ASSERT_FALSE(IsClosedSurface(part.indices));
+  EXPECT_FALSE(CullBackFaces(part, Vec3(0, 0, 30), 1.0));
+  part.whole = whole;
+  EXPECT_TRUE(CullBackFaces(part, Vec3(0, 0, 30), 1.0));
+  EXPECT_TRUE(CullBackFaces(part, Vec3(0, 0, -30), 1.0));  // the part's far side
+  EXPECT_FALSE(CullBackFaces(part, Vec3(1, 2, -3), 1.0));  // inside the whole
+  EXPECT_FALSE(CullBackFaces(part, Vec3(0, 0, 10.5), 1.0));
 }
 
 TEST(CullTest, SoftBodyBoundaryIsClosedUnlessTurnedInsideOut) {

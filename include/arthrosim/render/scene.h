@@ -3,6 +3,7 @@
 // never touches physics. BuildScene recomputes every surface (soft-body boundary of the alive
 // tets, bones, thread tube, instrument shapes) and its per-vertex normals from scratch.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,10 @@ struct SceneMesh {
   /// positive enclosed volume (so counter-clockwise faces point outward): the renderer may then
   /// skip back faces when the eye is outside the mesh's box.
   bool closed = false;
+  /// For an open part of a closed surface (a bone's cartilage, labrum, or the rest of it): that
+  /// closed surface. The part's back faces are hidden exactly when the whole's are, so the
+  /// renderer decides its culling on the whole. Null for every other mesh.
+  std::shared_ptr<const SceneMesh> whole;
 };
 
 /// The arthroscope for the scope view: tip pose plus optics.
