@@ -252,6 +252,26 @@ bool InUnsplitTet(const SoftBodyState& sb, std::int32_t n, const std::vector<std
   return false;
 }
 
+// The alive tets outside `split` (ascending) that hold node n, with the side (+1 / -1) of
+// their centroid against the plane (through the tree, refit), appended to *out as (tet, side).
+void UnsplitTetsAt(const SoftBodyState& sb, std::int32_t n, const std::vector<std::int32_t>& split,
+                   const collision::TetTree* tree, const Vec3& point, const Vec3& normal,
+                   std::vector<std::int32_t>* near,
+                   std::vector<std::pair<std::int32_t, int>>* out) {
+  collision::Box box;
+  box.Add(sb.x.col(n));
+  tree->QueryBox(sb.tet_alive, box, near);
+  for (std::int32_t t : *near) {
+    const mesh::Tet& e = sb.tets[static_cast<std::size_t>(t)];
+    if (std::find(e.begin(), e.end(), n) == e.end() ||
+        std::binary_search(split.begin(), split.end(), t))
+      continue;
+    Vec3 centroid = Vec3::Zero();
+    for (std::int32_t m : e) centroid += sb.x.col(m);
+    out->emplace_back(t, normal.dot(0.25 * centroid - point) < 0 ? -1 : 1);
+  }
+}
+
 }  // namespace
 
 SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::int32_t> tets,
@@ -407,6 +427,10 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     return n0 + static_cast<std::int32_t>(parents.size()) - 1;
   };
   std::vector<SideNodes> sided;  // ascending by node
+  // Unsplit tets at a made node of the cut, with their side: (tet, side) per made node, in
+  // node order; `around` holds the current node's.
+  std::vector<std::pair<std::int32_t, int>> around;
+  std::vector<std::pair<std::int32_t, std::pair<std::int32_t, std::int32_t>>> renode;
   for (std::size_t i = 0; i < uses.size();) {
     std::uint8_t sides = 0;
     std::size_t j = i;
@@ -416,6 +440,15 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     if (sides != 3 && v >= 0 && v < first_made &&
         InUnsplitTet(sb, static_cast<std::int32_t>(v), split, tree, &near))
       sides |= dist(static_cast<std::int32_t>(v)) < 0 ? 2 : 1;
+    // A made node (on an earlier cut surface, e.g. an edge point at the rim where an earlier
+    // step's cut ended) also holds the unsplit tets around it: each counts on its centroid's
+    // side, so the cut going on through the node parts them too (else the two sides stay
+    // joined at the earlier rim).
+    around.clear();
+    if (v >= first_made) {
+      UnsplitTetsAt(sb, static_cast<std::int32_t>(v), split, tree, point, normal, &near, &around);
+      for (const auto& [t, sgn] : around) sides |= sgn < 0 ? 2 : 1;
+    }
     i = j;
     if (sides != 3) continue;
     if (v < 0) {  // an edge point of this cut: positive side, a copy for the negative one
@@ -433,8 +466,14 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       sided.push_back(dist(n) < 0 ? SideNodes{v, other, n} : SideNodes{v, n, other});
     } else {
       sided.push_back({v, set[0], set.size() > 1 ? set[1] : new_copy(set[0])});
+      // Unsplit tets at v on the side whose node is not v take that side's node.
+      for (const auto& [t, sgn] : around) {
+        const std::int32_t to = sgn < 0 ? sided.back().negative : sided.back().positive;
+        if (to != n) renode.push_back({t, {n, to}});
+      }
     }
   }
+  std::sort(renode.begin(), renode.end());
   if (cuts.empty() && sided.empty()) return SplitResult{};
   // A crossed tet the cut does not divide is replaced only when one of its nodes changes to a
   // copy (else it stays as it is: no churn of identical tets step after step).
@@ -462,6 +501,16 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       ++result.split_tets;
       result.volume_mm3 += TetRestVolume(sb, pieces[i].parent);
     }
+  }
+  // Unsplit tets whose nodes change to the other side's copy of a made node: replaced by the
+  // same tet with the new nodes (same rest shape).
+  for (std::size_t i = 0; i < renode.size();) {
+    const std::int32_t t = renode[i].first;
+    mesh::Tet e = sb.tets[static_cast<std::size_t>(t)];
+    for (; i < renode.size() && renode[i].first == t; ++i)
+      std::replace(e.begin(), e.end(), renode[i].second.first, renode[i].second.second);
+    out.push_back(e);
+    replaced.push_back(t);
   }
   if (out.empty()) return SplitResult{};
   // 6. Apply: nodes first (interpolating x, v, x_rest), then the old tets out, the pieces in.
