@@ -154,6 +154,12 @@ struct ContactBuilder {
     const auto& f = model.soft_bodies[body].fixed_nodes;
     return std::binary_search(f.begin(), f.end(), node);
   }
+  // Nodes past a soft body's initial mesh were made by split-mode cuts (instruments/
+  // tet_split.cpp: edge points on the cut plane and the copies that part its two sides): they
+  // lie on a cut surface.
+  bool MadeByCut(int body, std::int32_t node) const {
+    return node >= model.soft_bodies[body].rest_mesh.nodes.cols();
+  }
   bool ThreadFixed(int thread, std::int32_t node) const {
     const auto& f = model.threads[thread].fixed_nodes;
     return std::find(f.begin(), f.end(), node) != f.end();

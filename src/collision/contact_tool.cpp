@@ -50,12 +50,23 @@ void ToolTissue(ContactBuilder* cb, int slot, const Sweep& sw, int body,
     c.obstacle_id = -1;
     return c;
   };
+  // A blade slides in its own cut. The faces a split-mode cut makes lie in the blade's plane:
+  // the cutting edge meets them edge-on and the closing blade then holds them inside its
+  // thickness, where pressing them (no meaningful direction there) crushes the thin pieces
+  // beside the cut and inverts them (docs/operations.md, Scissors). So a blade never pushes a
+  // point of a cut surface, one with a node made by a split (the other parts of the instrument,
+  // e.g. the shaft entering the cut, still do). Remove mode makes no nodes: unchanged.
+  const bool blade = sw.prim->part == ToolPart::kBlade;
+  auto on_cut_surface = [&](std::span<const std::int32_t> nodes) {
+    return blade && std::any_of(nodes.begin(), nodes.end(),
+                                [&](std::int32_t n) { return cb->MadeByCut(body, n); });
+  };
   // 1. Surface vertices.
   for (std::int32_t v : verts) {
     const std::int32_t node = e.surface.vertices[v];
     const Vec3& p = e.positions[v];
     if ((p.array() < query.lo.array()).any() || (p.array() > query.hi.array()).any()) continue;
-    if (cb->SoftFixed(body, node)) continue;
+    if (cb->SoftFixed(body, node) || on_cut_surface({&node, 1})) continue;
     ClosestPair touch;
     const int at = FirstTouch(sw, reach, PointSimplex(p), Box{p, p}, &touch);
     if (at < 0) continue;
@@ -75,6 +86,7 @@ void ToolTissue(ContactBuilder* cb, int slot, const Sweep& sw, int body,
     const mesh::Tri& g = e.surface.tris[t];
     if (cb->SoftFixed(body, g[0]) && cb->SoftFixed(body, g[1]) && cb->SoftFixed(body, g[2]))
       continue;
+    if (on_cut_surface(g)) continue;
     const Simplex tri = LocalTriangle(e.positions, e.surface.local_tris[t]);
     // The current closest point first: at a vertex there is nothing to add (often the case),
     // and the last substep of the touch search is then known.

@@ -97,6 +97,12 @@ void ScissorsCut(const Model& model, int slot, const StepContext& context, State
     if (!BladesTouch(context, slot, body)) continue;
     TetsCrossedByTriangle(*state, body, tri, &scratch->tet_trees[b], &scratch->tets);
     if (scratch->tets.empty()) continue;
+    SoftBodyState& sb = state->soft_bodies[b];
+    // Where the cut is: the centroid of the tets the blade triangle crosses (before the cut).
+    Vec3 centroid = Vec3::Zero();
+    for (std::int32_t t : scratch->tets)
+      for (std::int32_t n : sb.tets[static_cast<std::size_t>(t)]) centroid += sb.x.col(n);
+    centroid /= 4.0 * static_cast<double>(scratch->tets.size());
     if (opt.mode == CutMode::kSplit) {
       // The blades lie in the tool's x-z plane: its normal is the tool's y axis.
       const Vec3 normal = tool.pose.orientation * Vec3::UnitY();
@@ -109,17 +115,11 @@ void ScissorsCut(const Model& model, int slot, const StepContext& context, State
           "tets=" + std::to_string(r.split_tets) + " new_nodes=" + std::to_string(r.new_nodes) +
               " new_tets=" + std::to_string(r.new_tets) + " volume_mm3=" + Number(r.volume_mm3) +
               " min_quality=" + Number(r.min_quality) + " mode=split",
-          tri[0], state);
+          centroid, state);
       continue;
     }
-    SoftBodyState& sb = state->soft_bodies[b];
     double volume = 0;
-    Vec3 centroid = Vec3::Zero();
-    for (std::int32_t t : scratch->tets) {
-      volume += TetRestVolume(sb, t);
-      for (std::int32_t n : sb.tets[static_cast<std::size_t>(t)]) centroid += sb.x.col(n);
-    }
-    centroid /= 4.0 * static_cast<double>(scratch->tets.size());
+    for (std::int32_t t : scratch->tets) volume += TetRestVolume(sb, t);
     context.soft->RemoveTets(body, scratch->tets, state);
     sb.removed_volume_mm3 += volume;
     RecordEvent(model, slot, "cut", model.soft_bodies[b].name,

@@ -237,19 +237,40 @@ class RestTwins {
   std::vector<std::pair<std::array<double, 3>, std::int32_t>> made_;
 };
 
-// Whether an alive tet outside `split` (ascending) holds node n (through the tree, refit).
-bool InUnsplitTet(const SoftBodyState& sb, std::int32_t n, const std::vector<std::int32_t>& split,
-                  const collision::TetTree* tree, std::vector<std::int32_t>* near) {
+// The alive tets outside `split` (ascending) that hold node n and lie on one side of the plane,
+// appended to *out as (tet, side +1 / -1), through the tree (refit). A node counts as on the
+// plane if it was made by a split (id >= first_made) or lies within snap_fraction of the tet's
+// longest edge from the plane; a tet with nodes off the plane on both sides (beyond the rim of
+// the cut, where the blade did not reach) is left out: the cut ends there.
+void UnsplitTetsAt(const SoftBodyState& sb, std::int32_t n, const std::vector<std::int32_t>& split,
+                   const collision::TetTree* tree, const Vec3& point, const Vec3& normal,
+                   double snap_fraction, std::int32_t first_made, std::vector<std::int32_t>* near,
+                   std::vector<std::pair<std::int32_t, int>>* out) {
   collision::Box box;
   box.Add(sb.x.col(n));
   tree->QueryBox(sb.tet_alive, box, near);
   for (std::int32_t t : *near) {
     const mesh::Tet& e = sb.tets[static_cast<std::size_t>(t)];
-    if (std::find(e.begin(), e.end(), n) != e.end() &&
-        !std::binary_search(split.begin(), split.end(), t))
-      return true;
+    if (std::find(e.begin(), e.end(), n) == e.end() ||
+        std::binary_search(split.begin(), split.end(), t))
+      continue;
+    double longest = 0;
+    for (const auto& k : kEdges)
+      longest = std::max(longest, (sb.x.col(e[k[0]]) - sb.x.col(e[k[1]])).norm());
+    const double tol = snap_fraction * longest;
+    bool above = false, below = false;
+    Vec3 centroid = Vec3::Zero();
+    for (std::int32_t m : e) {
+      centroid += sb.x.col(m);
+      if (m >= first_made) continue;
+      const double d = normal.dot(Vec3(sb.x.col(m)) - point);
+      above |= d > tol;
+      below |= d < -tol;
+    }
+    if (above && below) continue;
+    const int sgn = above ? 1 : (below ? -1 : (normal.dot(0.25 * centroid - point) < 0 ? -1 : 1));
+    out->emplace_back(t, sgn);
   }
-  return false;
 }
 
 }  // namespace
@@ -379,14 +400,14 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       negative.push_back(sgn < 0 ? 1 : 0);
     }
   }
-  // 5. Separation: a node used on both sides (by pieces of crossed tets, or, for an original
-  // node the cut passes through, by crossed pieces on the other side than the tets around it
-  // that were not split) has one node per side. The positive side keeps an edge point, an
-  // original node keeps its own side; the other side takes a twin: a node made earlier at the
-  // same rest position (a copy an earlier cut made: the cut goes on through it, and its side
-  // stays one piece), else a new copy. Of twins, the lowest id is the positive side's. Pieces
-  // of the other split tets (conforming neighbours at the rim of the cut) keep their nodes: the
-  // cut ends there.
+  // 5. Separation: a node used on both sides (by pieces of crossed tets, or, for a node on the
+  // plane, by those and the unsplit tets around it lying on one side) has one node per side.
+  // The positive side keeps an edge point, an original node keeps its own side; the other side
+  // takes a twin: a node made earlier at the same rest position (a copy an earlier cut made: the
+  // cut goes on through it, and its side stays one piece), else a new copy. Of twins, the
+  // lowest id is the positive side's. Unsplit tets at the node on the side it does not keep are
+  // replaced by the same tet on the side's node. Pieces of the other split tets (conforming
+  // neighbours at the rim of the cut) keep their nodes: the cut ends there.
   std::vector<std::pair<std::int64_t, std::uint8_t>> uses;  // (node, side bit) of crossed pieces
   for (std::size_t i = 0; i < pieces.size(); ++i) {
     if (!pieces[i].crossed) continue;
@@ -407,15 +428,26 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     return n0 + static_cast<std::int32_t>(parents.size()) - 1;
   };
   std::vector<SideNodes> sided;  // ascending by node
+  // Unsplit tets at a made node of the cut, with their side: (tet, side) per made node, in
+  // node order; `around` holds the current node's.
+  std::vector<std::pair<std::int32_t, int>> around;
+  std::vector<std::pair<std::int32_t, std::pair<std::int32_t, std::int32_t>>> renode;
   for (std::size_t i = 0; i < uses.size();) {
     std::uint8_t sides = 0;
     std::size_t j = i;
     for (; j < uses.size() && uses[j].first == uses[i].first; ++j) sides |= uses[j].second;
     const std::int64_t v = uses[i].first;
-    // An original node keeps its own side through the tets around it that were not split.
-    if (sides != 3 && v >= 0 && v < first_made &&
-        InUnsplitTet(sb, static_cast<std::int32_t>(v), split, tree, &near))
-      sides |= dist(static_cast<std::int32_t>(v)) < 0 ? 2 : 1;
+    // A node on the plane (snapped, or made by an earlier cut: e.g. an edge point at the rim
+    // where an earlier step's cut ended) also holds the tets around it that were not split and
+    // lie on one side: each counts on its side, so the cut going on through the node parts them
+    // too (else the two sides stay joined there). On a fresh mesh these all lie on the node's
+    // own side; after earlier cuts they may lie on both.
+    around.clear();
+    if (v >= 0 && class_of(static_cast<std::int32_t>(v)) == 0) {
+      UnsplitTetsAt(sb, static_cast<std::int32_t>(v), split, tree, point, normal, snap_fraction,
+                    first_made, &near, &around);
+      for (const auto& [t, sgn] : around) sides |= sgn < 0 ? 2 : 1;
+    }
     i = j;
     if (sides != 3) continue;
     if (v < 0) {  // an edge point of this cut: positive side, a copy for the negative one
@@ -434,7 +466,13 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     } else {
       sided.push_back({v, set[0], set.size() > 1 ? set[1] : new_copy(set[0])});
     }
+    // Unsplit tets at n on the side whose node is not n take that side's node.
+    for (const auto& [t, sgn] : around) {
+      const std::int32_t to = sgn < 0 ? sided.back().negative : sided.back().positive;
+      if (to != n) renode.push_back({t, {n, to}});
+    }
   }
+  std::sort(renode.begin(), renode.end());
   if (cuts.empty() && sided.empty()) return SplitResult{};
   // A crossed tet the cut does not divide is replaced only when one of its nodes changes to a
   // copy (else it stays as it is: no churn of identical tets step after step).
@@ -462,6 +500,16 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       ++result.split_tets;
       result.volume_mm3 += TetRestVolume(sb, pieces[i].parent);
     }
+  }
+  // Unsplit tets whose nodes change to the other side's copy of a made node: replaced by the
+  // same tet with the new nodes (same rest shape).
+  for (std::size_t i = 0; i < renode.size();) {
+    const std::int32_t t = renode[i].first;
+    mesh::Tet e = sb.tets[static_cast<std::size_t>(t)];
+    for (; i < renode.size() && renode[i].first == t; ++i)
+      std::replace(e.begin(), e.end(), renode[i].second.first, renode[i].second.second);
+    out.push_back(e);
+    replaced.push_back(t);
   }
   if (out.empty()) return SplitResult{};
   // 6. Apply: nodes first (interpolating x, v, x_rest), then the old tets out, the pieces in.

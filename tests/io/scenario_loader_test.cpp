@@ -143,6 +143,22 @@ TEST_F(ScenarioLoaderTest, OperationsThresholdsAreCheckedKeys) {
   EXPECT_EQ(negative.field(), "operations.retriever.dist_limit");
 }
 
+// Split mode is rejected until progressive split cutting holds (docs/operations.md, Scissors).
+TEST_F(ScenarioLoaderTest, ScissorsModeIsRemoveSplitIsNotYetAccepted) {
+  EXPECT_EQ(LoadScenarioFromText(Edit("seed: 7", "seed: 7"), Path()).operations.scissors.mode,
+            CutMode::kRemove);  // the default
+  EXPECT_EQ(LoadScenarioFromText(Edit("seed: 7", "seed: 7\noperations: {scissors: {mode: remove}}"),
+                                 Path())
+                .operations.scissors.mode,
+            CutMode::kRemove);
+  for (const char* mode : {"split", "slice"}) {
+    const InputError e = LoadError(
+        Edit("seed: 7", std::string("seed: 7\noperations: {scissors: {mode: ") + mode + "}}"));
+    EXPECT_EQ(e.field(), "operations.scissors.mode") << mode;
+    EXPECT_EQ(e.line(), 3) << mode;
+  }
+}
+
 TEST_F(ScenarioLoaderTest, NestedUnknownKeyIsAnError) {
   const InputError e = LoadError(Edit("rayleigh_mass: 0.1", "rayleigh_mas: 0.1"));
   EXPECT_EQ(e.field(), "materials.muscle.rayleigh_mas");

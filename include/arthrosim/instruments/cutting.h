@@ -58,8 +58,10 @@ struct SplitResult {
 /// order, and the quads on shared faces take the diagonal that order gives, so the mesh stays
 /// conforming. Pieces are positive at rest, the rest volume is conserved up to rounding, each
 /// crossed piece lies on one side. The sides come apart: a node used on both sides gets one node
-/// per side (an earlier copy at the same rest position if one exists, else a new copy). A crossed
-/// tet the plane does not divide is replaced only if one of its nodes changes. New nodes
+/// per side (an earlier copy at the same rest position if one exists, else a new copy); for a
+/// node on the plane, the unsplit tets around it that lie on one side count too (on the node's
+/// other side they take its copy), so a cut continuing an earlier one parts the earlier rim. A
+/// crossed tet the plane does not divide is replaced only if one of its nodes changes. New nodes
 /// interpolate x, v and x_rest along their edge.
 SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::int32_t> tets,
                              const Vec3& point, const Vec3& normal, double snap_fraction,
