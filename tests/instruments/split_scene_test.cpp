@@ -13,6 +13,7 @@
 #include "arthrosim/instruments/cutting.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
+#include "op_scene.h"
 #include "arthrosim/sim/workspace.h"
 
 namespace arthrosim {
@@ -26,17 +27,6 @@ Model SplitShoulder() {
   Model m = io::LoadScenario(kSource + "/scenarios/rotator_cuff_repair.yaml");
   m.operations.scissors.mode = CutMode::kSplit;
   return m;
-}
-
-double AliveRestVolume(const SoftBodyState& b) {
-  double v = 0;
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    if (!b.tet_alive[t]) continue;
-    const mesh::Tet& e = b.tets[t];
-    const Vec3 a = b.x_rest.col(e[0]);
-    v += (b.x_rest.col(e[1]) - a).dot((b.x_rest.col(e[2]) - a).cross(b.x_rest.col(e[3]) - a)) / 6;
-  }
-  return v;
 }
 
 // Alive elements of a body whose signed volume is not positive at these positions.
@@ -92,7 +82,7 @@ TEST(SplitScene, BicepsTenotomyInSplitModeGivesTwoPiecesConservingVolume) {
   sim::Workspace ws;
   sim::BuildWorkspace(m, s, &ws);
   const SoftBodyState& b = s.soft_bodies[static_cast<std::size_t>(biceps)];
-  const double v0 = AliveRestVolume(b);
+  const double v0 = testing::AliveRestVolume(s, biceps);
   const std::size_t tets0 = b.tets.size();
   ASSERT_EQ(Count(Pieces(b)), 1);
   const int steps = static_cast<int>(script->end_time_s() / m.options.dt_s + 0.5);
@@ -117,7 +107,7 @@ TEST(SplitScene, BicepsTenotomyInSplitModeGivesTwoPiecesConservingVolume) {
       ASSERT_EQ(Inverted(sb, sb.x), 0) << "step " << k;
       ASSERT_EQ(Inverted(sb, sb.x_rest), 0) << "step " << k;
     }
-    ASSERT_NEAR(AliveRestVolume(b), v0, 1e-9 * v0) << "step " << k;
+    ASSERT_NEAR(testing::AliveRestVolume(s, biceps), v0, 1e-9 * v0) << "step " << k;
   }
   EXPECT_EQ(b.removed_volume_mm3, 0);
   double worst = 1;
