@@ -13,8 +13,8 @@
 #include "arthrosim/instruments/cutting.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
-#include "op_scene.h"
 #include "arthrosim/sim/workspace.h"
+#include "op_scene.h"
 
 namespace arthrosim {
 namespace {
