@@ -2,6 +2,7 @@
 #include "arthrosim/instruments/soft_shaving.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -41,6 +42,30 @@ std::string Number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.9g", v);
   return buf;
+}
+
+// True when alive tet `self` of the body shares none of its faces with another alive tet and
+// none lies on a joined interface (three nodes shared with another body): it hangs on the rest
+// of the body by an edge or a vertex at most.
+bool FaceIsolated(const SoftBodyState& sb, const physics::SoftSystem& soft, int body,
+                  std::int32_t self) {
+  const mesh::Tet& e = sb.tets[static_cast<std::size_t>(self)];
+  for (int skip = 0; skip < 4; ++skip) {
+    std::array<std::int32_t, 3> face{};
+    for (int k = 0, j = 0; k < 4; ++k) {
+      if (k != skip) face[static_cast<std::size_t>(j++)] = e[static_cast<std::size_t>(k)];
+    }
+    if (soft.IsJoined(body, face[0]) && soft.IsJoined(body, face[1]) &&
+        soft.IsJoined(body, face[2]))
+      return false;
+    for (std::size_t t = 0; t < sb.tets.size(); ++t) {
+      if (!sb.tet_alive[t] || static_cast<std::int32_t>(t) == self) continue;
+      const mesh::Tet& o = sb.tets[t];
+      const auto has = [&](std::int32_t n) { return std::find(o.begin(), o.end(), n) != o.end(); };
+      if (has(face[0]) && has(face[1]) && has(face[2])) return false;
+    }
+  }
+  return true;
 }
 
 const collision::ToolPrimitive* FindPart(const std::vector<collision::ToolPrimitive>& prims,
@@ -204,7 +229,39 @@ ShaveResult ShaveBody(const Model& model, int slot, int body, const collision::S
   }
   soft.RemoveTets(body, thin, state);
   result.removed_tets = static_cast<int>(thin.size());
-  result.volume_mm3 = before - after;
+
+  // 6. Debris: an alive element that now shares no face with another (FaceIsolated) hangs on
+  // the body by an edge or a vertex, a mechanism the corotational step cannot hold (its rotation,
+  // taken at the step's start, lags the flapping element: in the economy trainee's run such a
+  // tet of the tendon rang for 50 s and then diverged). It goes with the shave, as the shaver's
+  // suction takes a loose shred; removing it can isolate another, hence the loop.
+  double debris_volume = 0;
+  std::vector<std::int32_t> frontier = thin;
+  while (!frontier.empty()) {
+    std::vector<std::int32_t> near;
+    for (std::int32_t t : frontier) {
+      const mesh::Tet& e = sb.tets[static_cast<std::size_t>(t)];
+      near.insert(near.end(), e.begin(), e.end());
+    }
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
+    std::vector<std::int32_t> debris;
+    for (std::size_t t = 0; t < sb.tets.size(); ++t) {
+      if (!sb.tet_alive[t]) continue;
+      const mesh::Tet& e = sb.tets[t];
+      const bool touches = std::any_of(e.begin(), e.end(), [&](std::int32_t n) {
+        return std::binary_search(near.begin(), near.end(), n);
+      });
+      if (touches && FaceIsolated(sb, soft, body, static_cast<std::int32_t>(t)))
+        debris.push_back(static_cast<std::int32_t>(t));
+    }
+    for (std::int32_t t : debris)
+      debris_volume += SignedVolume(sb.x_rest, sb.tets[static_cast<std::size_t>(t)]);
+    soft.RemoveTets(body, debris, state);
+    result.removed_tets += static_cast<int>(debris.size());
+    frontier = std::move(debris);
+  }
+  result.volume_mm3 = before - after + debris_volume;
   sb.removed_volume_mm3 += result.volume_mm3;
   if (cauterize) {
     if (sb.cauterized.size() < static_cast<std::size_t>(sb.x.cols())) {
