@@ -2,7 +2,6 @@
 #include "arthrosim/instruments/soft_shaving.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -44,28 +43,24 @@ std::string Number(double v) {
   return buf;
 }
 
-// True when alive tet `self` of the body shares none of its faces with another alive tet and
-// none lies on a joined interface (three nodes shared with another body): it hangs on the rest
-// of the body by an edge or a vertex at most.
-bool FaceIsolated(const SoftBodyState& sb, const physics::SoftSystem& soft, int body,
-                  std::int32_t self) {
+// True when alive tet `self` of the body hangs on the rest of it by an edge, a vertex or
+// nothing: at most two of its nodes belong to another alive tet or to a joined interface. Such a
+// tet turns freely about that edge or vertex (three held nodes pin it: a tet whose faces are all
+// free but whose four corners are held is not loose).
+bool HangsLoose(const SoftBodyState& sb, const physics::SoftSystem& soft, int body,
+                std::int32_t self) {
   const mesh::Tet& e = sb.tets[static_cast<std::size_t>(self)];
-  for (int skip = 0; skip < 4; ++skip) {
-    std::array<std::int32_t, 3> face{};
-    for (int k = 0, j = 0; k < 4; ++k) {
-      if (k != skip) face[static_cast<std::size_t>(j++)] = e[static_cast<std::size_t>(k)];
-    }
-    if (soft.IsJoined(body, face[0]) && soft.IsJoined(body, face[1]) &&
-        soft.IsJoined(body, face[2]))
-      return false;
-    for (std::size_t t = 0; t < sb.tets.size(); ++t) {
+  int held = 0;
+  for (const std::int32_t n : e) {
+    bool shared = soft.IsJoined(body, n);
+    for (std::size_t t = 0; t < sb.tets.size() && !shared; ++t) {
       if (!sb.tet_alive[t] || static_cast<std::int32_t>(t) == self) continue;
       const mesh::Tet& o = sb.tets[t];
-      const auto has = [&](std::int32_t n) { return std::find(o.begin(), o.end(), n) != o.end(); };
-      if (has(face[0]) && has(face[1]) && has(face[2])) return false;
+      shared = std::find(o.begin(), o.end(), n) != o.end();
     }
+    held += shared ? 1 : 0;
   }
-  return true;
+  return held <= 2;
 }
 
 const collision::ToolPrimitive* FindPart(const std::vector<collision::ToolPrimitive>& prims,
@@ -230,11 +225,11 @@ ShaveResult ShaveBody(const Model& model, int slot, int body, const collision::S
   soft.RemoveTets(body, thin, state);
   result.removed_tets = static_cast<int>(thin.size());
 
-  // 6. Debris: an alive element that now shares no face with another (FaceIsolated) hangs on
-  // the body by an edge or a vertex, a mechanism the corotational step cannot hold (its rotation,
-  // taken at the step's start, lags the flapping element: in the economy trainee's run such a
-  // tet of the tendon rang for 50 s and then diverged). It goes with the shave, as the shaver's
-  // suction takes a loose shred; removing it can isolate another, hence the loop.
+  // 6. Debris: an alive element left hanging by an edge or a vertex (HangsLoose) is a mechanism
+  // the corotational step cannot hold (its rotation, taken at the step's start, lags the flapping
+  // element: in the economy trainee's run such a tet of the tendon rang for 50 s and then
+  // diverged). It goes with the shave, as the shaver's suction takes a loose shred; removing it
+  // can loosen another, hence the loop.
   double debris_volume = 0;
   std::vector<std::int32_t> frontier = thin;
   while (!frontier.empty()) {
@@ -252,7 +247,7 @@ ShaveResult ShaveBody(const Model& model, int slot, int body, const collision::S
       const bool touches = std::any_of(e.begin(), e.end(), [&](std::int32_t n) {
         return std::binary_search(near.begin(), near.end(), n);
       });
-      if (touches && FaceIsolated(sb, soft, body, static_cast<std::int32_t>(t)))
+      if (touches && HangsLoose(sb, soft, body, static_cast<std::int32_t>(t)))
         debris.push_back(static_cast<std::int32_t>(t));
     }
     for (std::int32_t t : debris)
