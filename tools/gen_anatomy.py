@@ -515,12 +515,18 @@ def scenario_text(name, duration, points, with_biceps, title, extra_header, anch
     w("gravity: [0, 0, -9810]")
     w("solver: {integrator: implicit_euler, cg_max_iterations: 100, cg_tolerance: 1.0e-6}")
     w("output: {every: 1}")
+    # Every product scene: the tool proxy slides along bone (god-object contact planes;
+    # docs/contact-model.md, "The tool proxy").
+    w("# The tool proxy slides along the bone it meets (god-object; docs/contact-model.md, \"The tool")
+    w("# proxy\"): the instrument stays outside bone at the hand's nearest reachable point.")
     if anchored_sutures:  # the repair scenes' scripts; bench_full keeps the default rule
         w("# Tissue trapped between an instrument and bone: the earlier rule (trapped_gap_mm 0: the")
         w("# advance along the push bounded per step, no floor, free sliding). The scripted demonstrations")
         w("# and the expert repair were tuned under it; with the default floor (1 mm) and friction (0.5)")
         w("# their tools stick where they press tissue on bone (docs/haptics.md, tests/sim/trapped_tissue_test).")
-        w("haptics: {trapped_gap_mm: 0}")
+        w("haptics: {slide: true, trapped_gap_mm: 0}")
+    else:
+        w("haptics: {slide: true}")
     w("")
     w("materials:")
     w("  # Passive skeletal muscle at rest: E 25 kPa (shear-wave elastography of the deltoid:")

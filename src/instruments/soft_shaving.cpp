@@ -43,6 +43,26 @@ std::string Number(double v) {
   return buf;
 }
 
+// True when alive tet `self` of the body hangs on the rest of it by an edge, a vertex or
+// nothing: at most two of its nodes belong to another alive tet or to a joined interface. Such a
+// tet turns freely about that edge or vertex (three held nodes pin it: a tet whose faces are all
+// free but whose four corners are held is not loose).
+bool HangsLoose(const SoftBodyState& sb, const physics::SoftSystem& soft, int body,
+                std::int32_t self) {
+  const mesh::Tet& e = sb.tets[static_cast<std::size_t>(self)];
+  int held = 0;
+  for (const std::int32_t n : e) {
+    bool shared = soft.IsJoined(body, n);
+    for (std::size_t t = 0; t < sb.tets.size() && !shared; ++t) {
+      if (!sb.tet_alive[t] || static_cast<std::int32_t>(t) == self) continue;
+      const mesh::Tet& o = sb.tets[t];
+      shared = std::find(o.begin(), o.end(), n) != o.end();
+    }
+    held += shared ? 1 : 0;
+  }
+  return held <= 2;
+}
+
 const collision::ToolPrimitive* FindPart(const std::vector<collision::ToolPrimitive>& prims,
                                          collision::ToolPart part) {
   for (const collision::ToolPrimitive& p : prims) {
@@ -204,7 +224,39 @@ ShaveResult ShaveBody(const Model& model, int slot, int body, const collision::S
   }
   soft.RemoveTets(body, thin, state);
   result.removed_tets = static_cast<int>(thin.size());
-  result.volume_mm3 = before - after;
+
+  // 6. Debris: an alive element left hanging by an edge or a vertex (HangsLoose) is a mechanism
+  // the corotational step cannot hold (its rotation, taken at the step's start, lags the flapping
+  // element: in the economy trainee's run such a tet of the tendon rang for 50 s and then
+  // diverged). It goes with the shave, as the shaver's suction takes a loose shred; removing it
+  // can loosen another, hence the loop.
+  double debris_volume = 0;
+  std::vector<std::int32_t> frontier = thin;
+  while (!frontier.empty()) {
+    std::vector<std::int32_t> near;
+    for (std::int32_t t : frontier) {
+      const mesh::Tet& e = sb.tets[static_cast<std::size_t>(t)];
+      near.insert(near.end(), e.begin(), e.end());
+    }
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
+    std::vector<std::int32_t> debris;
+    for (std::size_t t = 0; t < sb.tets.size(); ++t) {
+      if (!sb.tet_alive[t]) continue;
+      const mesh::Tet& e = sb.tets[t];
+      const bool touches = std::any_of(e.begin(), e.end(), [&](std::int32_t n) {
+        return std::binary_search(near.begin(), near.end(), n);
+      });
+      if (touches && HangsLoose(sb, soft, body, static_cast<std::int32_t>(t)))
+        debris.push_back(static_cast<std::int32_t>(t));
+    }
+    for (std::int32_t t : debris)
+      debris_volume += SignedVolume(sb.x_rest, sb.tets[static_cast<std::size_t>(t)]);
+    soft.RemoveTets(body, debris, state);
+    result.removed_tets += static_cast<int>(debris.size());
+    frontier = std::move(debris);
+  }
+  result.volume_mm3 = before - after + debris_volume;
   sb.removed_volume_mm3 += result.volume_mm3;
   if (cauterize) {
     if (sb.cauterized.size() < static_cast<std::size_t>(sb.x.cols())) {

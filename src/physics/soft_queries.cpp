@@ -174,4 +174,12 @@ NodeRef SoftSystem::Owner(int body, std::int32_t node) const {
       bodies_[static_cast<std::size_t>(body)].slot[static_cast<std::size_t>(node)])];
 }
 
+bool SoftSystem::IsJoined(int body, std::int32_t node) const {
+  const std::int32_t slot =
+      bodies_[static_cast<std::size_t>(body)].slot[static_cast<std::size_t>(node)];
+  const NodeRef own = slot_node_[static_cast<std::size_t>(slot)];
+  return own.body != body || own.node != node ||
+         !slot_aliases_[static_cast<std::size_t>(slot)].empty();
+}
+
 }  // namespace arthrosim::physics

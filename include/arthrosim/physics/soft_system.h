@@ -123,6 +123,8 @@ class SoftSystem final : public SoftStages {
   bool IsFree(int body, std::int32_t node) const;
   /// The node whose slot this node shares (itself unless it is a joined alias).
   NodeRef Owner(int body, std::int32_t node) const;
+  /// True when the node's slot is shared with another body (scenario `joins`), either side.
+  bool IsJoined(int body, std::int32_t node) const;
   /// Kinetic, elastic (rotations recomputed from state) and gravitational energy.
   SoftEnergies ComputeEnergies(const Model& model, const State& state) const;
   /// Elastic force (mN) on every node of a body at the state's positions (0 on dead nodes).
