@@ -137,12 +137,14 @@ Series TimeScenario(const Model& model, const std::string& trajectory, int steps
     s.holds.push_back(holds);
     if (trace != nullptr) {
       fmt::print(trace,
-                 "{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{},{:.4f},"
-                 "{:.4f}\n",
+                 "{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{},"
+                 "{},{},{:.4f},{:.4f}\n",
                  state.step, t.total_ms, t.kinematics_ms, t.collision_ms, t.soft.rotations_ms,
-                 t.soft.assembly_ms, t.soft.factor_ms, t.soft.solve_ms, t.instruments_ms,
-                 t.soft.cg_iterations, t.soft.contact_resolves, t.soft.active_contacts,
-                 t.soft.refactored ? 1 : 0, t.soft.anchor_moved ? 1 : 0, output_ms, output_cpu_ms);
+                 t.soft.assembly_ms, t.soft.factor_ms, t.soft.solve_ms, t.thread_ms,
+                 t.instruments_ms, t.soft.cg_iterations, t.soft.contact_resolves,
+                 t.soft.active_contacts, t.soft.refactored ? 1 : 0, t.soft.anchor_moved ? 1 : 0,
+                 ws.threads.last.newton_iterations, ws.threads.last.unconverged_solves, output_ms,
+                 output_cpu_ms);
     }
     s.last_residual = t.soft.cg_relative_residual;
     s.refactors += t.soft.refactored ? 1 : 0;
@@ -326,8 +328,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       if (!trace) throw InputError(a->trace, 0, "--trace", "cannot write this file");
       fmt::print(trace.get(),
                  "step,total_ms,kinematics_ms,collision_ms,rotations_ms,assembly_ms,factor_ms,"
-                 "solve_ms,instruments_ms,cg_iterations,contact_resolves,active_terms,"
-                 "refactored,factor_requested,output_ms,output_cpu_ms\n");
+                 "solve_ms,thread_ms,instruments_ms,cg_iterations,contact_resolves,active_terms,"
+                 "refactored,factor_requested,thread_newton_iterations,thread_unconverged,"
+                 "output_ms,output_cpu_ms\n");
     }
     PrintScenario(model, TimeScenario(model, a->trajectory, a->steps, -1, trace.get()), a->steps);
     trace.reset();
