@@ -23,6 +23,13 @@ constexpr int kMaxPushes = 4;
 constexpr int kMaxHalvings = 3;
 // Motion below this (mm) counts as arrived / stuck.
 constexpr double kArrivedMm = 1e-6;
+// A proxy found overlapping bone that no push-out frees (the sliding proxy wedged into a carved
+// cavity) backs out along its shaft, the way it came in, in steps of kRetreatStepMm up to
+// kMaxRetreatMm, to the first pose clear of bone.
+constexpr double kRetreatStepMm = 0.5;
+constexpr double kMaxRetreatMm = 20.0;
+// A proxy jammed while its handle is clear of bone backs out to this clearance, mm.
+constexpr double kJamRetreatClearanceMm = 1.0;
 // Soft tissue trapped against bone: when the instrument is within kTrappedMm of bone and pressed
 // tissue toward it last step with more than kTissueTouchN, it advances toward the bone at most
 // kTissueAdvanceMm per step, not at all once the reaction reaches the device maximum (the hand
@@ -273,6 +280,24 @@ bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::T
   return false;
 }
 
+// Backs `pose` out along its shaft (tool -z), kRetreatStepMm at a time up to kMaxRetreatMm, to
+// the first pose clear of bone by at least `min_clearance_mm`. False (pose unchanged) if none is.
+bool Retreat(const Model& model, const ToolState& tool, double min_clearance_mm, Pose* pose,
+             collision::ToolBoneHit* hit, ProxyWorkspace* ws) {
+  const Vec3 back = -(pose->orientation * Vec3::UnitZ());
+  for (double d = kRetreatStepMm; d <= kMaxRetreatMm + 1e-9; d += kRetreatStepMm) {
+    Pose p = *pose;
+    p.position_mm += d * back;
+    const collision::ToolBoneHit h = Clearance(model, tool, p, ws);
+    if (h.clearance_mm >= min_clearance_mm) {
+      *pose = p;
+      *hit = h;
+      return true;
+    }
+  }
+  return false;
+}
+
 // Where the proxy heads from `cur` this iteration (a god-object's constrained step): the goal
 // itself while the proxy is clear of bone (clearance >= kMinAdvanceMm) or has met no surface;
 // else the goal with the part of the way into the surfaces met removed (ContactPlanes::
@@ -299,12 +324,16 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
   const bool slide = model.haptics.slide;
   Pose cur = from;
   *hit = Clearance(model, tool, cur, ws);
-  if (hit->clearance_mm < 0 && !PushOut(model, tool, &cur, hit, ws)) return cur;
+  if (hit->clearance_mm < 0 && !PushOut(model, tool, &cur, hit, ws) &&
+      !(slide && Retreat(model, tool, 0.0, &cur, hit, ws))) {
+    return cur;
+  }
   ContactPlanes planes;
   if (hit->bone >= 0 && hit->clearance_mm < kMinAdvanceMm) {
     planes.Add(cur.position_mm, hit->normal, hit->clearance_mm);
   }
   int it = 0;
+  bool retreated = false;
   for (; it < kMaxIterations; ++it) {
     const Pose target = slide ? SlideGoal(cur, goal, *hit, planes) : goal;
     const double remaining = Motion(cur, target, arm);
@@ -325,7 +354,19 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
       placed = h.clearance_mm >= 0 || PushOut(model, tool, &next, &h, ws);
       if (placed && met.clearance_mm < 0) planes.Add(met_at, met.normal, met.clearance_mm);
     }
-    if (!placed) break;  // stuck: every shorter step overlaps bone beyond the push-out
+    if (!placed) {
+      // Stuck: every shorter step overlaps bone beyond the push-out. Pressing into bone (the
+      // handle behind the surface) it stays; jammed in a cavity while the handle is clear of
+      // bone and away, it backs out along its shaft (once per step) and follows from there.
+      if (!slide || retreated || remaining <= kReachMm ||
+          Clearance(model, tool, goal, ws).clearance_mm < 0 ||
+          !Retreat(model, tool, kJamRetreatClearanceMm, &cur, hit, ws)) {
+        break;
+      }
+      retreated = true;
+      planes = ContactPlanes();
+      continue;
+    }
     if (h.bone >= 0 && h.clearance_mm < kMinAdvanceMm) {
       planes.Add(next.position_mm, h.normal, h.clearance_mm);
     }
