@@ -55,12 +55,15 @@ bool BackFacesHidden(const SceneMesh& mesh, const Vec3& eye, double reach) {
   return crossings % 2 == 0;
 }
 
-bool CullBackFaces(const SceneMesh& mesh, const Vec3& eye, double reach) {
-  const SceneMesh& decider = mesh.whole ? *mesh.whole : mesh;
-  if (!decider.closed) return false;
+Eigen::AlignedBox3d MeshBox(const SceneMesh& mesh) {
   Eigen::AlignedBox3d box;
-  for (const Vertex& v : decider.vertices) box.extend(Pos(v));
-  return box.exteriorDistance(eye) > reach || BackFacesHidden(decider, eye, reach);
+  for (const Vertex& v : mesh.vertices) box.extend(Pos(v));
+  return box;
+}
+
+bool CullBackFaces(const SceneMesh& mesh, const Eigen::AlignedBox3d& box, const Vec3& eye,
+                   double reach) {
+  return mesh.closed && (box.exteriorDistance(eye) > reach || BackFacesHidden(mesh, eye, reach));
 }
 
 }  // namespace arthrosim::render

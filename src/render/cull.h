@@ -11,10 +11,14 @@ namespace arthrosim::render {
 /// behind front faces along every view ray. Conservative: false whenever unsure.
 bool BackFacesHidden(const SceneMesh& mesh, const Vec3& eye, double reach);
 
-/// Whether the renderer may skip the back faces of `mesh` seen from `eye`: decided on the mesh,
-/// or for a part of a closed surface (SceneMesh::whole) on that surface: no triangle within
-/// `reach` mm and the eye outside (BackFacesHidden), with a box test first (a mesh whose box is
-/// farther than `reach` from the eye needs no exact test).
-bool CullBackFaces(const SceneMesh& mesh, const Vec3& eye, double reach);
+/// The box of a mesh's vertices, mm.
+Eigen::AlignedBox3d MeshBox(const SceneMesh& mesh);
+
+/// Whether the renderer may skip the back faces of `mesh` (whose vertices' box is `box`) seen
+/// from `eye`: `mesh` closed and either its box farther than `reach` from the eye or
+/// BackFacesHidden. A part of a closed surface (SceneMesh::whole) is decided on that surface:
+/// call it with the whole and the whole's box.
+bool CullBackFaces(const SceneMesh& mesh, const Eigen::AlignedBox3d& box, const Vec3& eye,
+                   double reach);
 
 }  // namespace arthrosim::render

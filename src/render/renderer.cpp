@@ -362,9 +362,9 @@ struct Renderer::Impl {
       // Skipping hidden back faces halves the rasterised area of bones and soft tissue; the
       // box test skips the exact check for meshes far from the eye.
       const double reach = 1.01 * near_reach + 1e-3;
-      const bool cull = m.whole ? CullBackFaces(m, eye, reach)
-                                : m.closed && (ranges[i].box.exteriorDistance(eye) > reach ||
-                                               BackFacesHidden(m, eye, reach));
+      // (a bone's tissue part is culled as its closed whole is)
+      const bool cull = m.whole ? CullBackFaces(*m.whole, MeshBox(*m.whole), eye, reach)
+                                : CullBackFaces(m, ranges[i].box, eye, reach);
       if (cull != culling) {
         if (cull) {
           glEnable(GL_CULL_FACE);

@@ -74,14 +74,21 @@ collision::ToolBoneHit Clearance(const Model& model, ToolState tool, const Pose&
   return collision::ToolBoneClearance(ws->primitives, kReachMm, &ws->bones);
 }
 
+// Whether the instrument at `pose` is clear of bone by at least `min_clearance_mm` and its tip
+// outside every bone (the clearance query looks only kReachMm deep: a pose deep inside a bone
+// reads as clear), with the clearance in *hit.
+bool ClearOfBone(const Model& model, const ToolState& tool, const Pose& pose,
+                 double min_clearance_mm, collision::ToolBoneHit* hit, ProxyWorkspace* ws) {
+  *hit = Clearance(model, tool, pose, ws);
+  return hit->clearance_mm >= min_clearance_mm &&
+         collision::PointBoneSignedDistance(pose.position_mm, &ws->bones) > 0;
+}
+
 // Where a newly inserted instrument starts: at its handle if clear of bone (and not inside it),
 // else at its portal with the handle's orientation.
 Pose StartPose(const Model& model, const ToolState& tool, ProxyWorkspace* ws) {
-  const collision::ToolBoneHit at_handle = Clearance(model, tool, tool.handle_pose, ws);
-  if (at_handle.clearance_mm >= 0 &&
-      collision::PointBoneSignedDistance(tool.handle_pose.position_mm, &ws->bones) > 0) {
-    return tool.handle_pose;
-  }
+  collision::ToolBoneHit at_handle;
+  if (ClearOfBone(model, tool, tool.handle_pose, 0.0, &at_handle, ws)) return tool.handle_pose;
   const InstrumentModel& im = model.instruments[static_cast<std::size_t>(tool.instrument)];
   const int portal = model.FindPortal(im.portal);
   if (portal < 0) return tool.handle_pose;
@@ -281,15 +288,16 @@ bool PushOut(const Model& model, const ToolState& tool, Pose* pose, collision::T
 }
 
 // Backs `pose` out along its shaft (tool -z), kRetreatStepMm at a time up to kMaxRetreatMm, to
-// the first pose clear of bone by at least `min_clearance_mm`. False (pose unchanged) if none is.
+// the first pose clear of bone by at least `min_clearance_mm` (ClearOfBone). False (pose
+// unchanged) if none is.
 bool Retreat(const Model& model, const ToolState& tool, double min_clearance_mm, Pose* pose,
              collision::ToolBoneHit* hit, ProxyWorkspace* ws) {
   const Vec3 back = -(pose->orientation * Vec3::UnitZ());
-  for (double d = kRetreatStepMm; d <= kMaxRetreatMm + 1e-9; d += kRetreatStepMm) {
+  for (int k = 1; k * kRetreatStepMm <= kMaxRetreatMm; ++k) {
     Pose p = *pose;
-    p.position_mm += d * back;
-    const collision::ToolBoneHit h = Clearance(model, tool, p, ws);
-    if (h.clearance_mm >= min_clearance_mm) {
+    p.position_mm += (k * kRetreatStepMm) * back;
+    collision::ToolBoneHit h;
+    if (ClearOfBone(model, tool, p, min_clearance_mm, &h, ws)) {
       *pose = p;
       *hit = h;
       return true;
@@ -358,8 +366,9 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
       // Stuck: every shorter step overlaps bone beyond the push-out. Pressing into bone (the
       // handle behind the surface) it stays; jammed in a cavity while the handle is clear of
       // bone and away, it backs out along its shaft (once per step) and follows from there.
+      collision::ToolBoneHit at_goal;
       if (!slide || retreated || remaining <= kReachMm ||
-          Clearance(model, tool, goal, ws).clearance_mm < 0 ||
+          !ClearOfBone(model, tool, goal, 0.0, &at_goal, ws) ||
           !Retreat(model, tool, kJamRetreatClearanceMm, &cur, hit, ws)) {
         break;
       }
