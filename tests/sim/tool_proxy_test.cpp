@@ -249,7 +249,9 @@ TEST(ToolProxyTest, HandMovedAlongAFaceItPressesIntoSlidesTheProxyInAFewIteratio
 // The contrast: the earlier proxy (haptics.slide false) creeps along the face, runs into the
 // iteration cap and ends short of the handle's projection.
 TEST(ToolProxyTest, WithoutTheSlideTheProxyCreepsAlongTheFace) {
-  Sim r(BlockBoneModel());
+  Model m = BlockBoneModel();
+  m.haptics.slide = false;  // the earlier proxy (the default slides)
+  Sim r(std::move(m));
   int iterations = 0;
   const Vec3 p = RestThenMoveHand(&r, 0, 1, Vec3(2, 1, -3), &iterations);
   EXPECT_EQ(iterations, kProxyMaxIterations);
@@ -338,6 +340,10 @@ TEST(ToolProxyTest, ScenarioKeysAreReadAndChecked) {
   EXPECT_EQ(m.haptics.coupling_stiffness_n_per_mm, 0.5);
   EXPECT_EQ(m.haptics.coupling_damping_n_s_per_mm, 0.001);
   EXPECT_EQ(m.haptics.max_force_n, 3.3);
+  // A scenario that says nothing gets the sliding god-object proxy; `slide: false` the earlier one.
+  EXPECT_TRUE(io::LoadScenarioFromText(base, "h.yaml").haptics.slide);
+  EXPECT_FALSE(
+      io::LoadScenarioFromText(base + "haptics: {slide: false}\n", "h.yaml").haptics.slide);
   try {
     io::LoadScenarioFromText(base + "haptics: {max_force_n: -1}\n", "h.yaml");
     FAIL() << "expected an InputError";

@@ -246,11 +246,11 @@ struct ThreadSolverOptions {
 /// soft-tissue reactions, clamped to max_force_n.
 struct HapticsOptions {
   bool proxy = true;  ///< false: the instrument is the handle (no proxy)
-  /// true: near bone the proxy slides along the surfaces it met (god-object contact planes,
-  /// wedge push-out; docs/contact-model.md, "The tool proxy"); false: the earlier proxy, which
-  /// advances 0.25 mm toward the handle and is pushed out again (the demonstration scripts are
-  /// tuned to its lag).
-  bool slide = false;
+  /// true (default): near bone the proxy slides along the surfaces it met (god-object contact
+  /// planes, wedge push-out; docs/contact-model.md, "The tool proxy"); false: the earlier proxy,
+  /// which advances 0.25 mm toward the handle and is pushed out again (it creeps along a face it
+  /// presses into and stops short of the hand's projection at its iteration cap).
+  bool slide = true;
   double coupling_stiffness_n_per_mm = 1.0;    ///< virtual coupling spring, N/mm
   double coupling_damping_n_s_per_mm = 0.002;  ///< virtual coupling damper, N*s/mm
   double max_force_n = 25.0;                   ///< clamp of the fed-back force magnitude, N
