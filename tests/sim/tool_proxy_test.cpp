@@ -17,6 +17,7 @@
 #include "arthrosim/input/open_source.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
+#include "sampled_clearance.h"
 
 namespace arthrosim::sim {
 namespace {
@@ -56,32 +57,11 @@ InputFrame BurrAt(const Vec3& tip) {
   return f;
 }
 
-// Smallest clearance (signed distance - radius, mm) of the instrument's contacting parts from
-// bone, from points sampled every 0.2 mm over each part's core with the exact point query (a
-// different search from the proxy's own).
-double SampledClearance(const Model& m, const State& s, int slot) {
-  collision::BoneQueryWorld bones;
-  collision::SyncBoneQuery(s, &bones);
-  double lowest = 1e300;
-  for (const collision::ToolPrimitive& p :
-       collision::ToolPrimitivesWorld(m, s.tools[static_cast<std::size_t>(slot)])) {
-    if (!p.contacts) continue;
-    auto sample = [&](const Vec3& a, const Vec3& b) {
-      const int n = 1 + static_cast<int>((b - a).norm() / 0.2);
-      for (int i = 0; i <= n; ++i) {
-        const Vec3 x = a + (b - a) * (static_cast<double>(i) / n);
-        lowest = std::min(lowest, collision::PointBoneSignedDistance(x, &bones) - p.radius_mm);
-      }
-    };
-    const auto& v = p.core.v;
-    if (p.core.n == 1) sample(v[0], v[0]);
-    for (int i = 0; i < p.core.n && p.core.n > 1; ++i) sample(v[i], v[(i + 1) % p.core.n]);
-  }
-  return lowest;
-}
+using testing::SampledClearance;
 
-// The same, exactly (closest points of each part's core to every bone triangle within 4 mm), from
-// a bone search built afresh for this state: cheap enough for every step of a long run.
+// The clearance exactly, by the proxy's own search (closest points of each part's core to every
+// bone triangle within 4 mm), from a bone search built afresh for this state: cheap enough for
+// every step of a long run.
 double ExactClearance(const Model& m, const State& s, int slot) {
   collision::BoneQueryWorld bones;
   collision::SyncBoneQuery(s, &bones);

@@ -26,7 +26,8 @@ struct Trapped {
 
 // The shoulder scene with the acromion lifted 200 mm out of the way: the grasper comes straight
 // down onto the top of the humeral head (radius 22.5 mm, centre at the origin), where the
-// tendon lies over it (underside 0.8 mm above the head, 5 mm thick; tools/gen_anatomy.py).
+// tendon lies over it (underside 0.8 mm above the head, 5 mm thick;
+// tools/procedural_shoulder/params.py).
 Model ShoulderWithoutAcromion(bool proxy, bool trapped_rule) {
   Model m =
       io::LoadScenario(std::string(ARTHROSIM_SOURCE_DIR) + "/scenarios/rotator_cuff_repair.yaml");
