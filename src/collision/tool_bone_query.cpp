@@ -253,6 +253,7 @@ CoreNearest NearestOfBone(const Simplex& core, const Box& core_box, const BoneQu
 }  // namespace
 
 void SyncBoneQuery(const State& state, BoneQueryWorld* world) {
+  if (world->bones.size() != state.bones.size()) ++world->generation;
   world->bones.resize(state.bones.size());
   for (std::size_t g = 0; g < state.bones.size(); ++g) {
     const mesh::TriMesh& m = state.bones[g].surface;
@@ -269,6 +270,7 @@ void SyncBoneQuery(const State& state, BoneQueryWorld* world) {
     e.bvh.Build(e.positions, e.tris);
     e.revision = state.bones[g].revision;
     e.built = true;
+    ++world->generation;
   }
 }
 

@@ -24,6 +24,8 @@ struct BoneQueryWorld {
     TriangleBvh bvh;
   };
   std::vector<Entry> bones;
+  /// Incremented whenever SyncBoneQuery rebuilds a tree: equal generations, the same surfaces.
+  std::uint64_t generation = 0;
   /// A candidate triangle and its exact closest pair to the query's core.
   struct Tested {
     std::int32_t tri = -1;
