@@ -181,7 +181,7 @@ int Run(const RunArgs& a) {
   std::int64_t thread_solves = 0, thread_unconverged = 0, thread_substeps = 0;
   // The tool proxy's work (docs/contact-model.md): clearance searches and slot-steps that ran
   // into the iteration cap; printed only.
-  std::int64_t proxy_queries = 0, proxy_capped = 0;
+  std::int64_t proxy_queries = 0, proxy_capped = 0, proxy_reused = 0, proxy_cycles = 0;
   for (std::int64_t k = 0; k < steps && !g_interrupted; ++k) {
     if (a.live && source->Finished(state.time_s)) break;
     source->Frame(state.step + 1, static_cast<double>(state.step + 1) * model.options.dt_s, &frame);
@@ -201,6 +201,8 @@ int Run(const RunArgs& a) {
     thread_solves += ws.timings.thread.solves;
     thread_unconverged += ws.timings.thread.unconverged_solves;
     proxy_queries += ws.proxy.clearance_queries;
+    proxy_reused += ws.proxy.reused;
+    proxy_cycles += ws.proxy.cycles;
     for (int it : ws.proxy.iterations) proxy_capped += it >= sim::kProxyMaxIterations ? 1 : 0;
     thread_substeps += ws.timings.thread.substeps;
     source->Feedback(sim::Feedback(state));
@@ -242,8 +244,10 @@ int Run(const RunArgs& a) {
     fmt::print(stderr,
                "thread solves unconverged: {} of {} (thread_solver.max_newton_iterations {})\n",
                thread_unconverged, thread_solves, model.thread_solver.max_newton_iterations);
-    fmt::print(stderr, "tool proxy: {} clearance queries, {} slot-steps at the {}-iteration cap\n",
-               proxy_queries, proxy_capped, sim::kProxyMaxIterations);
+    fmt::print(stderr,
+               "tool proxy: {} clearance queries, {} slot-steps at the {}-iteration cap ({} "
+               "ended by a repeated state), {} taken from the step before (same inputs)\n",
+               proxy_queries, proxy_capped, sim::kProxyMaxIterations, proxy_cycles, proxy_reused);
     if (model.thread_solver.max_substep_levels > 0) {
       fmt::print(stderr, "thread substeps: {} (thread_solver.max_substep_levels {})\n",
                  thread_substeps, model.thread_solver.max_substep_levels);

@@ -89,38 +89,25 @@ ClosestPair ExactToTriangle(const Simplex& core, const BoneQueryWorld::Entry& e,
                                        e.positions[static_cast<std::size_t>(tri[2])]));
 }
 
-CoreNearest NearestTo(const Simplex& core, const BoneQueryWorld::Entry& e,
-                      const std::vector<std::int32_t>& cand, bool loose, std::vector<double>* lower,
-                      std::int64_t* exact_tests) {
+// The nearest of the tested candidates (in the order given: ascending triangle index), with the
+// pseudo-normal of the ties; `any` false: no candidate (not found).
+CoreNearest Scan(const BoneQueryWorld::Entry& e, const std::vector<BoneQueryWorld::Tested>& tested,
+                 bool any) {
   CoreNearest r;
-  auto exact = [&](std::int32_t t) { return ExactToTriangle(core, e, t); };
-  const Box core_box = CoreBox(core);
-  lower->resize(cand.size());
-  std::size_t nearest_box = 0;
-  for (std::size_t i = 0; i < cand.size(); ++i) {
-    (*lower)[i] = CoreBoxLowerBound(core, core_box, e.bvh.TriangleBox(cand[i]), loose);
-    if ((*lower)[i] < (*lower)[nearest_box]) nearest_box = i;
-  }
-  const double bound = cand.empty() ? 0.0 : std::sqrt(exact(cand[nearest_box]).dist2);
-  *exact_tests += cand.empty() ? 0 : 1;
-  const double cutoff = bound * (1 + kPruneRelative) + kPruneAbsoluteMm;
   double best2 = std::numeric_limits<double>::infinity();
   ClosestPair best_pair;
   Vec3 pseudo = Vec3::Zero();
-  for (std::size_t i = 0; i < cand.size(); ++i) {
-    if ((*lower)[i] > cutoff) continue;
-    const std::int32_t t = cand[i];
-    const ClosestPair c = exact(t);
-    ++*exact_tests;
+  for (const BoneQueryWorld::Tested& x : tested) {
+    const ClosestPair& c = x.pair;
     if (c.dist2 < best2 * (1 - kTieRelative)) {
       best2 = c.dist2;
       best_pair = c;
-      pseudo = FaceNormal(e, t);
+      pseudo = FaceNormal(e, x.tri);
     } else if (c.dist2 <= best2 * (1 + kTieRelative)) {
-      pseudo += FaceNormal(e, t);
+      pseudo += FaceNormal(e, x.tri);
     }
   }
-  if (cand.empty()) return r;
+  if (!any) return r;
   r.found = true;
   const double dist = std::sqrt(best2);
   const Vec3 delta = best_pair.pa - best_pair.pb;
@@ -135,6 +122,110 @@ CoreNearest NearestTo(const Simplex& core, const BoneQueryWorld::Entry& e,
     r.out = pseudo_unit;
   }
   return r;
+}
+
+CoreNearest NearestTo(const Simplex& core, const BoneQueryWorld::Entry& e,
+                      const std::vector<std::int32_t>& cand, bool loose, BoneQueryWorld* world) {
+  auto exact = [&](std::int32_t t) { return ExactToTriangle(core, e, t); };
+  std::vector<double>* lower = &world->lower_bounds;
+  const Box core_box = CoreBox(core);
+  lower->resize(cand.size());
+  std::size_t nearest_box = 0;
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    (*lower)[i] = CoreBoxLowerBound(core, core_box, e.bvh.TriangleBox(cand[i]), loose);
+    if ((*lower)[i] < (*lower)[nearest_box]) nearest_box = i;
+  }
+  const double bound = cand.empty() ? 0.0 : std::sqrt(exact(cand[nearest_box]).dist2);
+  world->exact_tests += cand.empty() ? 0 : 1;
+  const double cutoff = bound * (1 + kPruneRelative) + kPruneAbsoluteMm;
+  world->tested.clear();
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    if ((*lower)[i] > cutoff) continue;
+    world->tested.push_back({cand[i], exact(cand[i])});
+    ++world->exact_tests;
+  }
+  return Scan(e, world->tested, !cand.empty());
+}
+
+// True if a plane proves triangle t of e farther than cutoff_mm from the core: every core vertex
+// strictly on one side of the triangle's plane, the nearest of them farther than cutoff_mm from
+// it (the core is their convex hull, the triangle lies in the plane). Much tighter than a box
+// bound for the walls of a hole around a shaft (a wall triangle's box reaches toward the axis).
+bool PlaneSeparated(const Simplex& core, const BoneQueryWorld::Entry& e, std::int32_t t,
+                    double cutoff_mm) {
+  const mesh::Tri& tri = e.tris[static_cast<std::size_t>(t)];
+  const Vec3& a = e.positions[static_cast<std::size_t>(tri[0])];
+  const Vec3 n = (e.positions[static_cast<std::size_t>(tri[1])] - a)
+                     .cross(e.positions[static_cast<std::size_t>(tri[2])] - a);
+  const double nn = n.squaredNorm();
+  if (!(nn > 0)) return false;
+  double nearest = std::numeric_limits<double>::infinity();
+  int above = 0, below = 0;
+  for (int i = 0; i < core.n; ++i) {
+    const double side = n.dot(core.v[static_cast<std::size_t>(i)] - a);
+    above += side > 0 ? 1 : 0;
+    below += side < 0 ? 1 : 0;
+    nearest = std::min(nearest, std::abs(side));
+  }
+  if (above != core.n && below != core.n) return false;
+  return nearest * nearest > cutoff_mm * cutoff_mm * nn;
+}
+
+// The nearest triangle of bone e to a core when it lies well within `search` (its distance at
+// most search (1 - kPruneRelative) - kPruneAbsoluteMm): true and *out; false (*out untouched)
+// otherwise, where the gathering search below decides (its answer beyond the search distance
+// depends on the candidates it gathers, which the proxy relies on).
+//
+// Best-first over the tree by the box lower bound: each triangle reached that no plane proves
+// too far is tested exactly and lowers the cutoff to its distance (1 + kPruneRelative) +
+// kPruneAbsoluteMm, so the search ends at the nearest distance d plus that margin instead of
+// gathering all that lies within a first guess (the greedy descent's triangle: in the awl's own
+// hole ~2 900 candidates for ~100 that can matter). The scan (Scan, in triangle order) then sees
+// exactly the triangles within the final cutoff, C = d (1 + 1e-6) + 1e-9 mm: the same answer, bit
+// for bit, as the gathering search (NearestOfBone) and as testing every triangle, which see
+// these and possibly more, all farther than C. A farther triangle cannot change the scan: once
+// the nearest is scanned the running best stays within the tie tolerance (1e-9 relative) of it,
+// so no farther one ties or replaces; before, a farther one is replaced by the nearest (or a
+// nearer one) and leaves no trace, unless a chain of triangles, each a tie (within 1e-9) of the
+// next, leads from it down to the nearest, which needs ~1 000 triangles between d and C.
+bool NearestWithin(const Simplex& core, const Box& core_box, const BoneQueryWorld::Entry& e,
+                   double search, BoneQueryWorld* world, CoreNearest* out) {
+  auto lower = [&](const Box& b) { return CoreBoxLowerBound(core, core_box, b, false); };
+  std::vector<BoneQueryWorld::Tested>& tested = world->tested;
+  tested.clear();
+  double cutoff = search;
+  double nearest = std::numeric_limits<double>::infinity();
+  e.bvh.BestFirst(
+      lower, &cutoff,
+      [&](std::int32_t t, double) {
+        ++world->gathered;
+        if (PlaneSeparated(core, e, t, cutoff)) return;
+        const ClosestPair c = ExactToTriangle(core, e, t);
+        ++world->exact_tests;
+        const double d = std::sqrt(c.dist2);
+        if (!(d <= cutoff)) return;
+        tested.push_back({t, c});
+        if (d < nearest) {
+          nearest = d;
+          cutoff = std::min(search, nearest * (1 + kPruneRelative) + kPruneAbsoluteMm);
+        }
+      },
+      &world->heap);
+  // Those within the final cutoff, in triangle order (the scan's order).
+  tested.erase(std::remove_if(tested.begin(), tested.end(),
+                              [&](const BoneQueryWorld::Tested& x) {
+                                return !(std::sqrt(x.pair.dist2) <= cutoff);
+                              }),
+               tested.end());
+  if (tested.empty()) return false;
+  std::sort(tested.begin(), tested.end(),
+            [](const BoneQueryWorld::Tested& a, const BoneQueryWorld::Tested& b) {
+              return a.tri < b.tri;
+            });
+  const CoreNearest n = Scan(e, tested, true);
+  if (!(std::abs(n.signed_mm) <= search * (1 - kPruneRelative) - kPruneAbsoluteMm)) return false;
+  *out = n;
+  return true;
 }
 
 // The nearest triangle of bone e to a core, searched within `search` of it (see
@@ -156,12 +247,13 @@ CoreNearest NearestOfBone(const Simplex& core, const Box& core_box, const BoneQu
   cand.clear();
   e.bvh.QueryIf([&](const Box& b) { return lower(b) <= cutoff; }, &cand);
   world->gathered += static_cast<std::int64_t>(cand.size());
-  return NearestTo(core, e, cand, loose, &world->lower_bounds, &world->exact_tests);
+  return NearestTo(core, e, cand, loose, world);
 }
 
 }  // namespace
 
 void SyncBoneQuery(const State& state, BoneQueryWorld* world) {
+  if (world->bones.size() != state.bones.size()) ++world->generation;
   world->bones.resize(state.bones.size());
   for (std::size_t g = 0; g < state.bones.size(); ++g) {
     const mesh::TriMesh& m = state.bones[g].surface;
@@ -178,6 +270,7 @@ void SyncBoneQuery(const State& state, BoneQueryWorld* world) {
     e.bvh.Build(e.positions, e.tris);
     e.revision = state.bones[g].revision;
     e.built = true;
+    ++world->generation;
   }
 }
 
@@ -193,16 +286,20 @@ ToolBoneHit ToolBoneClearance(const std::vector<ToolPrimitive>& primitives, doub
     for (std::size_t g = 0; g < world->bones.size(); ++g) {
       const BoneQueryWorld::Entry& e = world->bones[g];
       if (e.bvh.empty() || BoxDistance(core_box, e.bvh.Bounds()) > search) continue;
-      // Within reach the tight bound gathers fewer candidates for the same answer. Beyond it
-      // (no triangle within `search`) the answer is whatever the gathered candidates give: the
-      // half-diagonal bound gathers some that lie farther and so sees some cores deeper inside
-      // than the reach, which the proxy relies on; that case keeps the loose bound's answer, bit
-      // for bit, until a depth-proof inside test replaces it.
-      CoreNearest n = NearestOfBone(prim.core, core_box, e, search, false, world);
-      const bool beyond =
-          !n.found || std::abs(n.signed_mm) > search * (1 - kPruneRelative) - kPruneAbsoluteMm;
-      if (beyond && prim.core.n == 2)
-        n = NearestOfBone(prim.core, core_box, e, search, true, world);
+      // Well within reach the best-first search answers (NearestWithin). Otherwise the gathering
+      // search does; within reach the tight bound gathers fewer candidates for the same answer.
+      // Beyond it (no triangle within `search`) the answer is whatever the gathered candidates
+      // give: the half-diagonal bound gathers some that lie farther and so sees some cores deeper
+      // inside than the reach, which the proxy relies on; that case keeps the loose bound's answer,
+      // bit for bit, until a depth-proof inside test replaces it.
+      CoreNearest n;
+      if (!NearestWithin(prim.core, core_box, e, search, world, &n)) {
+        n = NearestOfBone(prim.core, core_box, e, search, false, world);
+        const bool beyond =
+            !n.found || std::abs(n.signed_mm) > search * (1 - kPruneRelative) - kPruneAbsoluteMm;
+        if (beyond && prim.core.n == 2)
+          n = NearestOfBone(prim.core, core_box, e, search, true, world);
+      }
       if (!n.found) continue;
       const double clearance = n.signed_mm - prim.radius_mm;
       if (clearance < hit.clearance_mm) {
@@ -245,8 +342,7 @@ double PointBoneSignedDistance(const Vec3& p, BoneQueryWorld* world) {
     }
     cand.clear();
     e.bvh.Query(query.Inflated(reach), &cand);
-    const CoreNearest n =
-        NearestTo(point, e, cand, false, &world->lower_bounds, &world->exact_tests);
+    const CoreNearest n = NearestTo(point, e, cand, false, world);
     if (n.found) best = std::min(best, n.signed_mm);  // inside any bone wins
   }
   return best;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 
 namespace arthrosim::sim {
@@ -64,6 +66,30 @@ Pose Interpolate(const Pose& a, const Pose& b, double t) {
   p.orientation = a.orientation.slerp(t, b.orientation);
   p.orientation.normalize();
   return p;
+}
+
+// Equality of every bit (0.0 and -0.0 differ, a NaN equals itself): two values that are the
+// same bits lead every computation to the same bits.
+bool SameBits(double a, double b) {
+  std::uint64_t x = 0, y = 0;
+  std::memcpy(&x, &a, sizeof x);
+  std::memcpy(&y, &b, sizeof y);
+  return x == y;
+}
+
+bool SameBits(const Vec3& a, const Vec3& b) {
+  return SameBits(a.x(), b.x()) && SameBits(a.y(), b.y()) && SameBits(a.z(), b.z());
+}
+
+bool SameBits(const Pose& a, const Pose& b) {
+  return SameBits(a.position_mm, b.position_mm) && SameBits(a.orientation.w(), b.orientation.w()) &&
+         SameBits(a.orientation.vec(), b.orientation.vec());
+}
+
+bool SameBits(const collision::ToolBoneHit& a, const collision::ToolBoneHit& b) {
+  return SameBits(a.clearance_mm, b.clearance_mm) && a.bone == b.bone &&
+         a.primitive == b.primitive && SameBits(a.point_mm, b.point_mm) &&
+         SameBits(a.normal, b.normal);
 }
 
 collision::ToolBoneHit Clearance(const Model& model, ToolState tool, const Pose& pose,
@@ -173,6 +199,18 @@ class ContactPlanes {
   }
 
   bool empty() const { return count_ == 0; }
+
+  // Every plane held (and every unused slot) the same bits as in `o`.
+  bool SameBits(const ContactPlanes& o) const {
+    if (count_ != o.count_) return false;
+    for (std::size_t k = 0; k < planes_.size(); ++k) {
+      if (!sim::SameBits(planes_[k].normal, o.planes_[k].normal) ||
+          !sim::SameBits(planes_[k].level_mm, o.planes_[k].level_mm)) {
+        return false;
+      }
+    }
+    return true;
+  }
 
   // The part of the displacement `way` from position `cur` that does not lead closer than
   // kSkinMm to any surface held: the nearest x to `way` with x . n_k >= -gap_k, gap_k =
@@ -320,6 +358,27 @@ Pose SlideGoal(const Pose& cur, const Pose& goal, const collision::ToolBoneHit& 
   return slid;
 }
 
+// What one iteration of Follow starts from.
+struct IterationState {
+  Pose cur;
+  collision::ToolBoneHit hit;
+  ContactPlanes planes;
+  bool retreated = false;
+};
+
+bool SameBits(const IterationState& a, const IterationState& b) {
+  return a.retreated == b.retreated && SameBits(a.cur, b.cur) && SameBits(a.hit, b.hit) &&
+         a.planes.SameBits(b.planes);
+}
+
+// The first of seen[0 .. it) that equals seen[it] bit for bit; -1 if none.
+int FirstSeen(const std::array<IterationState, kMaxIterations>& seen, int it) {
+  for (int j = 0; j < it; ++j) {
+    if (SameBits(seen[static_cast<std::size_t>(j)], seen[static_cast<std::size_t>(it)])) return j;
+  }
+  return -1;
+}
+
 // Follows the handle from `from` by conservative advancement: steps no longer than the current
 // clearance (or kMinAdvanceMm near bone), each pushed out of bone if it overlaps. With
 // haptics.slide (else the earlier proxy): a step that cannot be pushed out is retried shorter,
@@ -342,7 +401,24 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
   }
   int it = 0;
   bool retreated = false;
+  // The iteration is a function of (cur, *hit, planes, retreated) alone (the goal, the bones and
+  // the instrument stay fixed during Follow). Once that state repeats, bit for bit, an earlier
+  // one, the proxy is in a cycle that no exit test ended the first time round (a proxy wedged in
+  // a carved hole alternating between its walls, pushed out of one into the other): it would run
+  // to kMaxIterations, so the state it would end in is taken from the cycle instead of computed.
+  std::array<IterationState, kMaxIterations> seen;
   for (; it < kMaxIterations; ++it) {
+    seen[static_cast<std::size_t>(it)] = IterationState{cur, *hit, planes, retreated};
+    const int first = ws->shortcuts ? FirstSeen(seen, it) : -1;
+    if (first >= 0) {
+      ++ws->cycles;
+      const IterationState& end =
+          seen[static_cast<std::size_t>(first + (kMaxIterations - first) % (it - first))];
+      cur = end.cur;
+      *hit = end.hit;
+      it = kMaxIterations;
+      break;
+    }
     const Pose target = slide ? SlideGoal(cur, goal, *hit, planes) : goal;
     const double remaining = Motion(cur, target, arm);
     if (remaining <= kArrivedMm) break;
@@ -388,6 +464,16 @@ Pose Follow(const Model& model, const ToolState& tool, const Pose& from, const P
   return cur;
 }
 
+// Whether Follow would be given the same inputs as in `last` (its result is then last's): the
+// same model and bone surfaces, instrument and jaw (its primitives and lever arm), start and goal.
+bool SameInputs(const ProxyWorkspace::Resolution& last, const Model& model,
+                std::uint64_t generation, const ToolState& tool, const Pose& from,
+                const Pose& goal) {
+  return last.model == &model && last.generation == generation &&
+         last.instrument == tool.instrument && SameBits(last.jaw, tool.jaw) &&
+         SameBits(last.from, from) && SameBits(last.goal, goal);
+}
+
 }  // namespace
 
 void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlots>& prev_tools,
@@ -395,6 +481,8 @@ void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlo
   ws->touches.clear();
   ws->iterations.fill(0);
   ws->clearance_queries = 0;
+  ws->reused = 0;
+  ws->cycles = 0;
   if (model.haptics.proxy) collision::SyncBoneQuery(*state, &ws->bones);
   for (int slot = 0; slot < kToolSlots; ++slot) {
     ToolState& tool = state->tools[static_cast<std::size_t>(slot)];
@@ -411,7 +499,24 @@ void ResolveToolProxies(const Model& model, const std::array<ToolState, kToolSlo
     Pose goal = tool.handle_pose;
     if (same) goal.position_mm = TissueLimitedGoal(model, prev, from, goal.position_mm, ws);
     collision::ToolBoneHit hit;
-    tool.pose = Follow(model, tool, from, goal, arm, &hit, &ws->iterations[slot], ws);
+    ProxyWorkspace::Resolution& last = ws->last[static_cast<std::size_t>(slot)];
+    if (ws->shortcuts && SameInputs(last, model, ws->bones.generation, tool, from, goal)) {
+      ++ws->reused;
+      tool.pose = last.pose;
+      hit = last.hit;
+      ws->iterations[static_cast<std::size_t>(slot)] = last.iterations;
+    } else {
+      tool.pose = Follow(model, tool, from, goal, arm, &hit, &ws->iterations[slot], ws);
+      last = ProxyWorkspace::Resolution{&model,
+                                        ws->bones.generation,
+                                        tool.instrument,
+                                        tool.jaw,
+                                        from,
+                                        goal,
+                                        tool.pose,
+                                        hit,
+                                        ws->iterations[static_cast<std::size_t>(slot)]};
+    }
     if (hit.bone >= 0 && hit.clearance_mm < model.contact.contact_distance_mm) {
       ws->touches.push_back(ToolContact{slot, ConstraintEnd::Kind::kBone, hit.bone, hit.point_mm});
     }

@@ -451,3 +451,58 @@ TEST(ToolProxyTest, AbusiveSweepIsBitIdenticalForOneAndTwoThreads) {
 
 }  // namespace
 }  // namespace arthrosim::sim
+
+namespace arthrosim::sim {
+namespace {
+
+// The awl operation (trajectories/ops/awl.yaml: the pilot hole driven into the humeral head), run
+// with the proxy's two shortcuts (a step whose inputs equal the step before's takes its result;
+// a resolution whose iteration state repeats an earlier one bit for bit ends where the cycle
+// would be after the 96 iterations) and without: the same State, bit for bit, after every step.
+// Both shortcuts act here (the awl wedged in its hole alternates between its walls: 5 cycles, 5
+// steps taken from the step before). Fails with the cycle's end taken one iteration early
+// (first + (96 - first) % period - 1: the tool pose differs at step 178) and with the start pose
+// left out of the step's inputs (step 152). Release only (two shoulder runs of 500 steps, ~6 s;
+// minutes under the sanitizers, where the expert and operation runs take the same paths).
+TEST(ToolProxyTest, ShortcutsOfTheAwlInItsHoleGiveTheFullResolutionBitForBit) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "Release only (two shoulder runs)";
+#endif
+  const Model m = Shoulder();
+  input::SourceOptions options;
+  options.dt_s = m.options.dt_s;
+  const std::string script = std::string(ARTHROSIM_SOURCE_DIR) + "/trajectories/ops/awl.yaml";
+  auto with = input::OpenInputSource(script, m, options);
+  auto without = input::OpenInputSource(script, m, options);
+  Sim a(m), b(m);
+  b.ws.proxy.shortcuts = false;
+  int cycles = 0, reused = 0, steps = 0;
+  InputFrame fa, fb;
+  for (;; ++steps) {
+    const double t = static_cast<double>(a.state.step + 1) * m.options.dt_s;
+    if (with->Finished(t)) break;
+    with->Frame(a.state.step + 1, t, &fa);
+    without->Frame(b.state.step + 1, t, &fb);
+    a.Step(fa);
+    b.Step(fb);
+    with->Feedback(Feedback(a.state));
+    without->Feedback(Feedback(b.state));
+    cycles += a.ws.proxy.cycles;
+    reused += a.ws.proxy.reused;
+    ASSERT_EQ(b.ws.proxy.cycles + b.ws.proxy.reused, 0);
+    ASSERT_TRUE(a.state.tools[0].pose == b.state.tools[0].pose &&
+                a.state.tools[1].pose == b.state.tools[1].pose)
+        << "step " << a.state.step;
+    ASSERT_TRUE(BitwiseEqual(a.state, b.state)) << "step " << a.state.step;
+  }
+  std::printf(
+      "awl operation: %d steps, %d resolutions ended by a repeated state, %d taken from "
+      "the step before\n",
+      steps, cycles, reused);
+  EXPECT_EQ(steps, 500);
+  EXPECT_GT(cycles, 0);
+  EXPECT_GT(reused, 0);
+}
+
+}  // namespace
+}  // namespace arthrosim::sim

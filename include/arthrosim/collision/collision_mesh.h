@@ -91,6 +91,14 @@ class TriangleBvh {
   /// candidate for a nearest-triangle search (any triangle gives an upper bound).
   template <class Lower>
   std::int32_t Descend(const Lower& lower) const;
+  /// Best-first branch and bound: visits the nodes whose lower(box) <= *cutoff in ascending
+  /// lower(box) (ties: the smaller node index first) and calls leaf(tri, lower) for each leaf so
+  /// reached; leaf may lower *cutoff (the search then stops sooner). Every triangle whose
+  /// lower(box), and that of each box on its root path, stays <= the final *cutoff is reached.
+  /// `heap` is scratch (its capacity is kept: no allocation once warm). Deterministic.
+  template <class Lower, class Leaf>
+  void BestFirst(const Lower& lower, double* cutoff, const Leaf& leaf,
+                 std::vector<std::pair<double, std::int32_t>>* heap) const;
   /// Appends (this triangle, other triangle) pairs whose boxes are within `margin` mm of each
   /// other, sorted ascending.
   void QueryPairs(const TriangleBvh& other, double margin,
@@ -145,6 +153,36 @@ std::int32_t TriangleBvh::Descend(const Lower& lower) const {
     n = r < l ? node.right : node.left;
   }
   return nodes_[static_cast<std::size_t>(n)].tri;
+}
+
+template <class Lower, class Leaf>
+void TriangleBvh::BestFirst(const Lower& lower, double* cutoff, const Leaf& leaf,
+                            std::vector<std::pair<double, std::int32_t>>* heap) const {
+  heap->clear();
+  if (empty()) return;
+  // A min-heap on (lower, node): the pair order makes the visit order deterministic.
+  const auto later = [](const std::pair<double, std::int32_t>& a,
+                        const std::pair<double, std::int32_t>& b) { return b < a; };
+  const double root = lower(nodes_[0].box);
+  if (!(root <= *cutoff)) return;
+  heap->emplace_back(root, 0);
+  while (!heap->empty()) {
+    std::pop_heap(heap->begin(), heap->end(), later);
+    const auto [bound, index] = heap->back();
+    heap->pop_back();
+    if (!(bound <= *cutoff)) break;  // every node left is at least as far
+    const Node& node = nodes_[static_cast<std::size_t>(index)];
+    if (node.tri >= 0) {
+      leaf(node.tri, bound);
+      continue;
+    }
+    for (const std::int32_t child : {node.left, node.right}) {
+      const double l = lower(nodes_[static_cast<std::size_t>(child)].box);
+      if (!(l <= *cutoff)) continue;
+      heap->emplace_back(l, child);
+      std::push_heap(heap->begin(), heap->end(), later);
+    }
+  }
 }
 
 template <class Keep>

@@ -4,10 +4,12 @@
 // negative), with the nearest bone point and the direction that leads out. The tool proxy (sim)
 // uses it to keep instruments outside bone; the bone operations use the contact it reports.
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "arthrosim/collision/collision_mesh.h"
 #include "arthrosim/collision/instrument_shape.h"
+#include "arthrosim/collision/proximity.h"
 #include "arthrosim/core/state.h"
 
 namespace arthrosim::collision {
@@ -22,11 +24,21 @@ struct BoneQueryWorld {
     TriangleBvh bvh;
   };
   std::vector<Entry> bones;
+  /// Incremented whenever SyncBoneQuery rebuilds a tree: equal generations, the same surfaces.
+  std::uint64_t generation = 0;
+  /// A candidate triangle and its exact closest pair to the query's core.
+  struct Tested {
+    std::int32_t tri = -1;
+    ClosestPair pair;
+  };
   std::vector<std::int32_t> candidates;  ///< scratch of the queries
   std::vector<double> lower_bounds;      ///< scratch: per candidate a lower bound of its distance
+  std::vector<Tested> tested;            ///< scratch: the candidates tested exactly
+  std::vector<std::pair<double, std::int32_t>> heap;  ///< scratch of the best-first search
   /// Exact core-triangle distance tests the queries did (a work counter for tests and benches).
   std::int64_t exact_tests = 0;
-  /// Candidate triangles ToolBoneClearance gathered (their lower bounds computed; a work counter).
+  /// Candidate triangles ToolBoneClearance reached (their box lower bound within the search's
+  /// cutoff; a work counter).
   std::int64_t gathered = 0;
 };
 

@@ -6,6 +6,7 @@
 // between handle and proxy plus the soft-tissue reactions on the instrument, clamped to
 // Model::haptics.max_force_n.
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "arthrosim/collision/contact_generation.h"
@@ -26,6 +27,27 @@ struct ProxyWorkspace {
   std::vector<ToolContact> touches;
   std::array<int, kToolSlots> iterations{0, 0};  ///< resolution iterations used (diagnostics)
   int clearance_queries = 0;  ///< tool-bone clearance searches this step, all slots (diagnostics)
+  /// Each slot's last resolution: its inputs (model, bone surfaces by generation, instrument,
+  /// jaw, start and goal poses, bit for bit) and its result. A step with the same inputs (a hand
+  /// held still against bone) takes the result instead of resolving again: the resolution is a
+  /// function of these inputs alone.
+  struct Resolution {
+    const Model* model = nullptr;
+    std::uint64_t generation = 0;
+    int instrument = -1;
+    double jaw = 0;
+    Pose from;
+    Pose goal;
+    Pose pose;
+    collision::ToolBoneHit hit;
+    int iterations = 0;
+  };
+  std::array<Resolution, kToolSlots> last;
+  /// False: every slot-step resolved in full, without the two shortcuts (a step's inputs equal
+  /// to the last step's; a cycle of iteration states), which give the same bits (tests compare).
+  bool shortcuts = true;
+  int reused = 0;  ///< slot-steps this step that took the last resolution (diagnostics)
+  int cycles = 0;  ///< slot-steps this step ended by a repeated iteration state (diagnostics)
 };
 
 /// Moves each inserted slot's proxy (tools[s].pose) from its last pose toward tools[s].
