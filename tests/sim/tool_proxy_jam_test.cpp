@@ -17,7 +17,7 @@
 #include "arthrosim/physics/bone_surface.h"
 #include "arthrosim/sim/step.h"
 #include "arthrosim/sim/tool_proxy.h"
-#include "sampled_clearance.h"
+#include "tool_proxy_scene.h"
 
 namespace arthrosim::sim {
 namespace {
@@ -73,22 +73,10 @@ mesh::TriMesh GridBox(const Vec3& lo, const Vec3& hi, double h_mm) {
 // A bone block [-10, 10] x [-10, 10] x [-20, 0] on a 1 mm grid and the 5.5 mm burr, with the
 // sliding proxy (every product scene has it).
 Model GridBlockModel() {
-  Model m;
-  m.name = "grid_block";
   BoneModel bone;
   bone.name = "block";
   bone.surface = GridBox(Vec3(-10, -10, -20), Vec3(10, 10, 0), 1.0);
-  m.bones.push_back(bone);
-  m.portals.push_back({"top", Vec3(0, 0, 60)});
-  InstrumentModel burr;
-  burr.name = "burr";
-  burr.kind = InstrumentKind::kBurr;
-  burr.portal = "top";
-  burr.shaft_diameter_mm = 5.5;
-  burr.tip_length_mm = 5.5;
-  burr.tip_radius_mm = 2.75;
-  m.instruments.push_back(burr);
-  m.options.gravity_mm_s2 = Vec3::Zero();
+  Model m = testing::BurrOverBone("grid_block", std::move(bone));
   m.haptics.slide = true;
   return m;
 }
@@ -118,14 +106,8 @@ void CarveTunnel(State* s, double r, double depth_mm) {
   ++s->bones[0].revision;
 }
 
-struct Sim {
-  Model model;
-  State state;
-  Workspace ws;
-  explicit Sim(Model m) : model(std::move(m)), state(MakeInitialState(model)) {
-    BuildWorkspace(model, state, &ws);
-  }
-  void Step(const InputFrame& f) { sim::Step(model, f, &state, &ws); }
+struct Sim : testing::Sim {
+  using testing::Sim::Sim;
   // Signed distance of the instrument's tip point from the bones, mm (< 0 inside): the
   // clearance reaches only 4 mm into bone, a tip deep inside would read as clear.
   double TipDistanceMm() const {

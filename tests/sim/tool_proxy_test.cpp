@@ -17,15 +17,13 @@
 #include "arthrosim/input/open_source.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "arthrosim/sim/step.h"
-#include "sampled_clearance.h"
+#include "tool_proxy_scene.h"
 
 namespace arthrosim::sim {
 namespace {
 
 // A bone block [-20, 20] x [-20, 20] x [-40, 0] (top face z = 0), a burr and a portal above it.
 Model BlockBoneModel() {
-  Model m;
-  m.name = "block_bone";
   BoneModel bone;
   bone.name = "block";
   bone.surface.nodes.resize(3, 8);
@@ -34,18 +32,7 @@ Model BlockBoneModel() {
   for (int i = 0; i < 8; ++i) bone.surface.nodes.col(i) = Vec3(c[i][0], c[i][1], c[i][2]);
   bone.surface.tris = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
                        {2, 3, 7}, {2, 7, 6}, {0, 4, 7}, {0, 7, 3}, {1, 2, 6}, {1, 6, 5}};
-  m.bones.push_back(bone);
-  m.portals.push_back({"top", Vec3(0, 0, 60)});
-  InstrumentModel burr;
-  burr.name = "burr";
-  burr.kind = InstrumentKind::kBurr;
-  burr.portal = "top";
-  burr.shaft_diameter_mm = 5.5;
-  burr.tip_length_mm = 5.5;
-  burr.tip_radius_mm = 2.75;
-  m.instruments.push_back(burr);
-  m.options.gravity_mm_s2 = Vec3::Zero();
-  return m;
+  return testing::BurrOverBone("block_bone", std::move(bone));
 }
 
 // The burr pointing straight down (tool +z = world -z) with its tip at `tip`.
@@ -58,6 +45,7 @@ InputFrame BurrAt(const Vec3& tip) {
 }
 
 using testing::SampledClearance;
+using testing::Sim;
 
 // The clearance exactly, by the proxy's own search (closest points of each part's core to every
 // bone triangle within 4 mm), from a bone search built afresh for this state: cheap enough for
@@ -70,16 +58,6 @@ double ExactClearance(const Model& m, const State& s, int slot) {
              &bones)
       .clearance_mm;
 }
-
-struct Sim {
-  Model model;
-  State state;
-  Workspace ws;
-  explicit Sim(Model m) : model(std::move(m)), state(MakeInitialState(model)) {
-    BuildWorkspace(model, state, &ws);
-  }
-  void Step(const InputFrame& f) { sim::Step(model, f, &state, &ws); }
-};
 
 TEST(ToolProxyTest, HandleSpringGivesTheExpectedForceForAKnownPenetration) {
   Sim r(BlockBoneModel());

@@ -1,14 +1,48 @@
 #pragma once
-// The tool proxy tests' own measure of an instrument's clearance from bone, independent of the
-// proxy's search (tool_proxy_test.cpp, tool_proxy_jam_test.cpp).
+// The tool proxy tests' shared pieces (tool_proxy_test.cpp, tool_proxy_jam_test.cpp): their scene
+// (a 5.5 mm burr over a bone, stepped by sim::Step) and their own measure of an instrument's
+// clearance from bone, independent of the proxy's search.
 #include <algorithm>
+#include <string>
+#include <utility>
 
 #include "arthrosim/collision/instrument_shape.h"
 #include "arthrosim/collision/tool_bone_query.h"
 #include "arthrosim/core/model.h"
 #include "arthrosim/core/state.h"
+#include "arthrosim/sim/step.h"
 
 namespace arthrosim::sim::testing {
+
+/// A model named `name` with `bone`, a portal "top" at (0, 0, 60) and a 5.5 mm burr (tip length
+/// 5.5, radius 2.75) in it; no gravity. The proxy options are the defaults (sliding).
+inline Model BurrOverBone(std::string name, BoneModel bone) {
+  Model m;
+  m.name = std::move(name);
+  m.bones.push_back(std::move(bone));
+  m.portals.push_back({"top", Vec3(0, 0, 60)});
+  InstrumentModel burr;
+  burr.name = "burr";
+  burr.kind = InstrumentKind::kBurr;
+  burr.portal = "top";
+  burr.shaft_diameter_mm = 5.5;
+  burr.tip_length_mm = 5.5;
+  burr.tip_radius_mm = 2.75;
+  m.instruments.push_back(burr);
+  m.options.gravity_mm_s2 = Vec3::Zero();
+  return m;
+}
+
+/// A model, its state and workspace, stepped by sim::Step.
+struct Sim {
+  Model model;
+  State state;
+  Workspace ws;
+  explicit Sim(Model m) : model(std::move(m)), state(MakeInitialState(model)) {
+    BuildWorkspace(model, state, &ws);
+  }
+  void Step(const InputFrame& f) { sim::Step(model, f, &state, &ws); }
+};
 
 /// Smallest clearance (signed distance - radius, mm; < 0 inside bone) of the contacting parts of
 /// the instrument in `slot` from the bones of `s`, from points sampled every 0.2 mm over each
