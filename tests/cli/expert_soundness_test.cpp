@@ -179,5 +179,30 @@ TEST(ExpertRepair, DISABLED_CutSutureStubsStayOutOfBone) {
   EXPECT_LE(deepest, 0.5);
 }
 
+// Known defect (issue #14, docs/operations.md (4) trial (l)): the thread solve stalls from the
+// anchor on, so the tail a pass lays straight up from the exit stays standing in the air. Each
+// tail's free end should fall under gravity in the second after its pass (a 40 mm chain swinging
+// about its exit falls tens of millimetres in that time; 5 mm is asked). Today: suture_a 0.071 mm,
+// suture_b 0.016 mm. Enable when the thread solve converges on slack limbs.
+TEST(ExpertRepair, DISABLED_ATailLeftStandingAfterAPassFallsUnderGravity) {
+  int passes = 0;
+  for (const Event& e : Events()) {
+    if (e.kind != "suture_pass") continue;
+    ++passes;
+    const int t = Shoulder().FindThread(DetailText(e, "thread"));
+    ASSERT_GE(t, 0);
+    auto end_z = [&](double at_s) {
+      const State frame = FrameAt(at_s);
+      const std::vector<Vec3> limb = LimbFrom(frame.threads[static_cast<std::size_t>(t)], 0);
+      return limb.back().z();
+    };
+    const double fall_mm = end_z(e.time_s + 0.2) - end_z(e.time_s + 1.2);
+    std::printf("%s: tail end fell %.3f mm in the second after its pass\n",
+                DetailText(e, "thread").c_str(), fall_mm);
+    EXPECT_GE(fall_mm, 5.0);
+  }
+  EXPECT_EQ(passes, 2);
+}
+
 }  // namespace
 }  // namespace arthrosim
