@@ -15,6 +15,7 @@
 
 #include "arthrosim/collision/tool_bone_query.h"
 #include "arthrosim/io/run_reader.h"
+#include "arthrosim/io/run_writer.h"
 #include "arthrosim/io/scenario_loader.h"
 #include "run_state_util.h"
 
@@ -154,15 +155,19 @@ TEST_F(SutureRepair, TheTornEdgeStaysPutWhileTheNeedleComesIn) {
   EXPECT_LT(moved_mm, 2.0);
 }
 
-// Known defect, not yet met (docs/operations.md, "On the shoulder scene"): while the needle
-// carries a limb from the lateral side to the bite, the limb between the anchor and the needle
-// cuts into the humeral head. Deepest thread node inside bone (signed distance to the bone
-// surfaces, nodes in the anchor's hole excepted, every 5th frame), as ExpertRepair.RunIsSound
-// measures it (4.69 mm at 12.1 s, on the first carry); run with --gtest_also_run_disabled_tests.
+// Known defect, not yet met (docs/operations.md, "On the shoulder scene"): deepest thread node
+// inside bone (signed distance to the bone surfaces, nodes in the anchor's hole excepted, every
+// 5th frame), as ExpertRepair.RunIsSound measures it; run with --gtest_also_run_disabled_tests.
+// The limb's middle no longer cuts through the head on the carries (4.69 mm at 12.1 s before
+// thread-bone contacts held at every depth); what remains is the node the needle holds, drawn
+// 4.94 mm into the head at 19.30 s (suture_b node 35) by the needle's spring, whose tool-frame
+// point lies inside the bone while the jaws slide under the tendon: a tool spring outpulls the
+// 20 N/mm contact (the expert's needle path does not do this).
 TEST_F(SutureRepair, DISABLED_TheLimbsStayOutOfTheHumerus) {
   const Model model = io::LoadScenario(kScene);
   io::RunReader run(path_);
   double deepest = 0, when = 0;
+  std::string where;
   State s;
   collision::BoneQueryWorld world;
   for (std::int64_t k = 0; k < run.frame_count(); k += 5) {
@@ -182,11 +187,13 @@ TEST_F(SutureRepair, DISABLED_TheLimbsStayOutOfTheHumerus) {
         if (depth > deepest) {
           deepest = depth;
           when = s.time_s;
+          where = model.threads[static_cast<std::size_t>(&th - s.threads.data())].name + " node " +
+                  std::to_string(n);
         }
       }
     }
   }
-  std::printf("deepest limb node in bone %.2f mm at %.2f s\n", deepest, when);
+  std::printf("deepest limb node in bone %.2f mm at %.2f s (%s)\n", deepest, when, where.c_str());
   EXPECT_LE(deepest, 0.5);
 }
 
@@ -194,8 +201,14 @@ TEST_F(SutureRepair, StitchesHoldAndNothingDivergesOrOverstretches) {
   const Model model = io::LoadScenario(kScene);
   io::RunReader run(path_);
   const std::int64_t last = run.frame_count() - 1;
-  double worst_strain = 0;
+  double worst_strain = 0, worst_allowed = 0;
   bool finite = true;
+  // The file's positions are within the writer's bound per coordinate (docs/hdf5-layout.md), so
+  // a segment's length read back is within 2 sqrt(3) of it of the solver's: a segment held at
+  // the 1 % strain limit can read up to that much longer.
+  const io::RunWriterOptions writer;
+  const double read_error_mm =
+      2 * std::sqrt(3.0) * std::max(writer.position_tolerance_mm, 0.5 * writer.position_quantum_mm);
   for (std::int64_t k = 0; k <= last; k += 5) {
     const State s = run.Frame(k);
     for (std::size_t t = 0; t < s.threads.size(); ++t) {
@@ -204,14 +217,19 @@ TEST_F(SutureRepair, StitchesHoldAndNothingDivergesOrOverstretches) {
       finite = finite && x.allFinite();
       for (int n = 1; n < x.cols(); ++n) {
         const double rest = (x0.col(n) - x0.col(n - 1)).norm();
-        worst_strain = std::max(worst_strain, (x.col(n) - x.col(n - 1)).norm() / rest - 1);
+        const double strain = (x.col(n) - x.col(n - 1)).norm() / rest - 1;
+        if (strain > worst_strain) {
+          worst_strain = strain;
+          worst_allowed = model.thread_solver.max_strain + read_error_mm / rest;
+        }
       }
     }
     for (const SoftBodyState& b : s.soft_bodies) finite = finite && b.x.allFinite();
   }
-  std::printf("worst thread strain %.4f %%\n", 100 * worst_strain);
+  std::printf("worst thread strain %.4f %% as read (the limit and the file's bound: %.4f %%)\n",
+              100 * worst_strain, 100 * worst_allowed);
   EXPECT_TRUE(finite);
-  EXPECT_LE(worst_strain, 0.01);
+  EXPECT_LE(worst_strain, worst_allowed);
   // At the end each limb is still stitched through the tendon (at least the paper's four nodes:
   // entry, two inside, exit) and its stitched points sit at their tissue points.
   const State end = run.Frame(last);
