@@ -35,10 +35,12 @@ void ThreadSurfaceContact(ContactBuilder* cb, int thread, PointContact c, const 
 }
 
 // Whether the nearest surface point n is within contact range of a thread of radius rt: up to
-// the alarm distance outside, the maximum depth inside.
-bool InContact(const Nearest& n, double rt, const CollisionParams& P) {
+// the alarm distance outside; inside, up to the maximum depth for tissue (deeper counts as a
+// stitch passing through) and at any depth for bone (a suture never passes through bone).
+bool InContact(const Nearest& n, double rt, const CollisionParams& P, Kind obstacle) {
   const double sd = n.Signed();
-  return sd >= 0 ? sd < rt + P.alarm_distance_mm : -sd < P.max_depth_mm;
+  if (sd >= 0) return sd < rt + P.alarm_distance_mm;
+  return obstacle == Kind::kBone || -sd < P.max_depth_mm;
 }
 
 // Next to a piercing (scratch->pierced) the thread enters the tissue on purpose: blocks the
@@ -76,7 +78,7 @@ void SegmentInteriorContacts(ContactBuilder* cb, int thread, Kind obstacle, int 
     const Nearest& n = seg[i];
     const double u = n.pair.wa[1];
     if (!n.found || cb->scratch.blocked_edge[i] || u <= 1e-9 || u >= 1 - 1e-9 ||
-        !InContact(n, rt, cb->params)) {
+        !InContact(n, rt, cb->params, obstacle)) {
       continue;
     }
     const std::int32_t a = tm.initial.edges[i][0], b = tm.initial.edges[i][1];
@@ -106,7 +108,8 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
   const double rt = 0.5 * tm.diameter_mm;
   if (bvh.empty()) return;
   const Box bounds = bvh.Bounds();
-  const double reach = std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
+  const double reach = obstacle == Kind::kBone ? rt + P.alarm_distance_mm + P.thread_bone_reach_mm
+                                               : std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
   const std::size_t ne = tm.initial.edges.size();
   const Eigen::Index nn = x.cols();
   ContactTaskScratch& scratch = cb->scratch;
@@ -167,7 +170,9 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
     near_node[a] = near_node[b] = 1;
     if (node_seg[a] < 0) node_seg[a] = static_cast<std::int32_t>(i);
     if (node_seg[b] < 0) node_seg[b] = static_cast<std::int32_t>(i);
-    if (seg[i].pair.dist2 == 0) pierced[i] = 1;
+    // A stitch pierces tissue; nothing legitimately pierces bone, so a segment through it keeps
+    // its contacts (they push it back out).
+    if (seg[i].pair.dist2 == 0 && obstacle != Kind::kBone) pierced[i] = 1;
   }
   BlockAroundPiercings(tm, &scratch);
   // Nodes.
@@ -188,7 +193,7 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
     }
     const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, &scratch, (*hint)[v]);
     if (n.found) (*hint)[v] = n.tri;
-    if (!n.found || !InContact(n, rt, P)) continue;
+    if (!n.found || !InContact(n, rt, P, obstacle)) continue;
     ThreadSurfaceContact(cb, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
                          obstacle_index, s, rt, stiffness);
   }
@@ -215,7 +220,7 @@ void DetectThread(ContactBuilder* cb, int t, CollisionWorld* world) {
                               cb->model.threads[t].initial.edges.size();
     ResetNearBone(e.version, slots, &cache);
     ThreadSurface(cb, t, Kind::kBone, static_cast<int>(g), e.indexed, e.positions, e.bvh,
-                  params.bone_stiffness_n_per_mm, false, &cache.hint,
+                  params.thread_bone_stiffness_n_per_mm, false, &cache.hint,
                   [&](std::size_t i, const Box& q, std::vector<std::int32_t>* out) {
                     NearBoneTriangles(e, &cache, i, q, out);
                   });

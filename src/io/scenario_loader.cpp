@@ -117,10 +117,10 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
 void ReadContact(const YamlSection& root, Model* m) {
   if (!root.Has("contact")) return;
   ContactOptions& c = m->contact;
-  YamlSection s(
-      root.reader(), root.Get("contact"), "contact",
-      {"alarm_distance", "contact_distance", "max_depth", "sweep_fraction", "max_substeps",
-       "stiffness", "sharp_point_volume_contacts", "tissue_tissue_contacts", "bone_tip_contacts"});
+  YamlSection s(root.reader(), root.Get("contact"), "contact",
+                {"alarm_distance", "contact_distance", "max_depth", "thread_bone_reach",
+                 "sweep_fraction", "max_substeps", "stiffness", "sharp_point_volume_contacts",
+                 "tissue_tissue_contacts", "bone_tip_contacts"});
   c.alarm_distance_mm = s.Quantity("alarm_distance", ranges::kContactDistance, c.alarm_distance_mm);
   c.contact_distance_mm =
       s.Quantity("contact_distance", ranges::kContactDistance, c.contact_distance_mm);
@@ -131,6 +131,7 @@ void ReadContact(const YamlSection& root, Model* m) {
                        "before the gap they keep)");
   }
   c.max_depth_mm = s.Positive("max_depth", c.max_depth_mm);
+  c.thread_bone_reach_mm = s.Positive("thread_bone_reach", c.thread_bone_reach_mm);
   c.sweep_fraction = s.Positive("sweep_fraction", c.sweep_fraction);
   if (c.sweep_fraction > 1) {
     root.reader().Fail(s.Get("sweep_fraction"), s.Field("sweep_fraction"),
@@ -154,6 +155,7 @@ void ReadContact(const YamlSection& root, Model* m) {
       {"thread_tissue", &ContactOptions::thread_tissue_stiffness_n_per_mm},
       {"tissue_tissue", &ContactOptions::tissue_tissue_stiffness_n_per_mm},
       {"bone", &ContactOptions::bone_stiffness_n_per_mm},
+      {"thread_bone", &ContactOptions::thread_bone_stiffness_n_per_mm},
       {"tool_bone", &ContactOptions::tool_bone_stiffness_n_per_mm}};
   std::vector<const char*> keys;
   for (const auto& [key, member] : kStiffness) keys.push_back(key);

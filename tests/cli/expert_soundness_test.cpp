@@ -41,8 +41,7 @@ const Soundness& Survey() {
     // soft tissue is measured against where it started (the scene's tissue may touch bone at rest)
     std::vector<std::vector<double>> start_depth(Shoulder().soft_bodies.size());
     std::string where_soft, where_thread, where_tool, first_thread;
-    // threads up to the first tail cut: the cut-off stubs sinking into bone is a known defect
-    // (DISABLED_CutSutureStubsStayOutOfBone below)
+    // threads up to the first tail cut (after it: CutSutureStubsStayOutOfBone below)
     const double first_cut_s = FirstThreadCutS();
     for (std::int64_t k = 0; k < frames;
          k = k + 100 < frames || k == frames - 1 ? k + 100 : frames - 1) {
@@ -141,19 +140,17 @@ TEST(ExpertRepair, RunIsSound) {
   EXPECT_LE(s.worst_strain, 0.01);
 }
 
-// Known defect (issue #14, as SutureRepair.DISABLED_TheLimbsStayOutOfTheHumerus): while the
-// scorpion needle carries a limb from its loading point below the anchor round the head to the
-// bite, the limb's middle nodes cut through the humeral head on a chord (suture_a node 19
-// 14.3 mm deep at 70 s; first node 0.5 mm in at 68 s). Thread nodes (those in the anchor's hole
-// excepted), up to the first tail cut, must stay within 0.5 mm of bone.
-TEST(ExpertRepair, DISABLED_TheLimbsStayOutOfTheHumerus) {
-  EXPECT_LE(Survey().deepest_thread, kTunnelMm);
-}
+// While the scorpion needle carries a limb from its loading point below the anchor round the head
+// to the bite, the limb wraps round the head: thread nodes (those in the anchor's hole excepted),
+// up to the first tail cut, stay within 0.5 mm of bone. Until thread-bone contacts held at every
+// depth (contact.thread_bone_*), the limb's middle nodes cut through the head on a chord
+// (suture_a node 19 14.3 mm deep at 70 s): fails so with them reverted.
+TEST(ExpertRepair, TheLimbsStayOutOfTheHumerus) { EXPECT_LE(Survey().deepest_thread, kTunnelMm); }
 
-// Known defect, found by this test: after the cutter has cut a limb, the short stub left on the
-// anchor sinks into the humerus (suture_a: node 4 2.5 mm deep 2 s after the cut, node 11 10 mm
-// deep 20 s later). Enable when thread-bone contact holds cut stubs out.
-TEST(ExpertRepair, DISABLED_CutSutureStubsStayOutOfBone) {
+// After the cutter has cut a limb, the stub left on the anchor stays out of the humerus. Until
+// thread-bone contacts held at every depth, it sank in (suture_a: node 4 2.5 mm deep 2 s after
+// the cut, node 11 10 mm deep 20 s later; 14.7 mm with them reverted).
+TEST(ExpertRepair, CutSutureStubsStayOutOfBone) {
   const io::RunReader& r = *TheRun().reader;
   const double first_cut_s = FirstThreadCutS();
   double deepest = 0;

@@ -203,7 +203,11 @@ TEST(TraineeVariants, KnotLeftAboveItsTargetIsNotSeated) {
   EXPECT_TRUE(EventsOf("novice_knot", "knot_seated").empty());
   // Where the knot stays: the midpoint of its two nodes against the midpoint of the nodes the
   // expert's knot is seated on (its target: the same limbs, passed the same way), in the
-  // variant's last frame. Beyond 2 mm it would fail the plan's seating tolerance even if judged.
+  // variant's last frame: off its target by more than the 1 mm the expert's seating is held to
+  // (ExpertRepair.KnotTiedAndSeatedOnItsTarget). Since the limbs stand clear of the head and
+  // the knot is thrown lower over them (2026-11-29), it is 1.5 mm above its target, inside the
+  // plan's 2 mm seating tolerance: the step fails because the knot is never seated, not by the
+  // distance (before, when the throw sat higher, this asked >= 2 mm).
   const State& last = RunOf("novice_knot").last;
   const auto at = [&](const Event& e) {
     Vec3 sum = Vec3::Zero();
@@ -220,7 +224,7 @@ TEST(TraineeVariants, KnotLeftAboveItsTargetIsNotSeated) {
       "its target\n",
       DetailValue(*thrown[0], "node_a"), DetailValue(*thrown[0], "node_b"),
       DetailValue(*seated[0], "node_a"), DetailValue(*seated[0], "node_b"), off_mm);
-  EXPECT_GE(off_mm, 2.0);
+  EXPECT_GT(off_mm, 1.0);
   const StepResult& step = Step(knot, "knot");
   EXPECT_FALSE(step.passed);
   EXPECT_TRUE(Contains(step.reason, "knot_seated")) << step.reason;

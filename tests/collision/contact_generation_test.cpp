@@ -421,6 +421,42 @@ TEST(ContactGeneration, StitchedThreadIsNotPushedOutOfTheTissue) {
   EXPECT_TRUE(out.contacts.empty());
 }
 
+// A thread run straight down through bone (as the stitched thread above runs through tissue):
+// bone is never passed through, so every node the search reaches inside it (down to
+// thread_bone_reach_mm below the alarm band) gets a contact pushing it out along the face's
+// normal, those beside the crossing too, at the thread-bone stiffness. Before: the crossing
+// segment counted as a piercing (its nodes and neighbours blocked) and nodes deeper than
+// max_depth_mm (1.5) had no contact, so this got none at all.
+TEST(ContactGeneration, AThreadThroughBoneIsPushedOutAtEveryDepthTheSearchReaches) {
+  Model model;
+  model.bones.push_back(BoxBone(Vec3(-10, -10, -10), Vec3(10, 10, 0)));
+  ThreadModel t;
+  t.name = "suture";
+  t.initial.nodes.resize(3, 14);
+  for (int i = 0; i < 14; ++i) {
+    t.initial.nodes.col(i) = Vec3(0.3, 0.3, -5.5 + i);  // z = -5.5 ... 7.5
+    if (i > 0) t.initial.edges.push_back({i - 1, i});
+  }
+  model.threads.push_back(t);
+  const State state = MakeInitialState(model);
+  CollisionParams params;
+  CollisionWorld world;
+  CollisionOutput out;
+  Detect(model, state, state.tools, params, &world, &out);
+  const double rt = 0.5 * model.threads[0].diameter_mm;
+  std::vector<int> nodes;
+  for (const PointContact& c : out.contacts) {
+    ASSERT_EQ(c.target, PointContact::Target::kThread);
+    EXPECT_LT((c.normal - Vec3(0, 0, 1)).norm(), 1e-12);
+    EXPECT_NEAR(c.offset_mm, rt + params.contact_distance_mm, 1e-12);
+    EXPECT_EQ(c.stiffness_n_per_mm, params.thread_bone_stiffness_n_per_mm);
+    if (c.nodes[1] < 0 || c.weights[1] == 0) nodes.push_back(c.nodes[0]);
+  }
+  // Nodes at z = -3.5 ... 0.5: inside down to the reach (3 mm below the 1.275 mm band of a
+  // 0.55 mm thread: 4.275 mm), and the one 0.5 mm above the face within the alarm band.
+  EXPECT_EQ(nodes, (std::vector<int>{2, 3, 4, 5, 6}));
+}
+
 TEST(ContactGeneration, EventsStartAndEndWithRegionAndToolForcesSum) {
   Model model;
   model.soft_bodies.push_back(Block("tendon", Vec3(-5, -5, 0), Vec3(5, 5, 3), 5, 5, 3));

@@ -229,8 +229,8 @@ TEST_F(ScenarioLoaderTest, ContactSectionIsRead) {
   const Model m = LoadScenarioFromText(
       Edit("seed: 7",
            "seed: 7\ncontact:\n  alarm_distance: 0.8\n  contact_distance: 0.05\n"
-           "  max_depth: 2\n  sweep_fraction: 0.25\n  max_substeps: 32\n"
-           "  stiffness: {tool_tissue: 3, tissue_tissue: 1.5, tool_bone: 7}"),
+           "  max_depth: 2\n  sweep_fraction: 0.25\n  max_substeps: 32\n  thread_bone_reach: 4\n"
+           "  stiffness: {tool_tissue: 3, tissue_tissue: 1.5, tool_bone: 7, thread_bone: 30}"),
       Path());
   EXPECT_DOUBLE_EQ(m.contact.alarm_distance_mm, 0.8);
   EXPECT_DOUBLE_EQ(m.contact.contact_distance_mm, 0.05);
@@ -240,6 +240,8 @@ TEST_F(ScenarioLoaderTest, ContactSectionIsRead) {
   EXPECT_DOUBLE_EQ(m.contact.tool_tissue_stiffness_n_per_mm, 3.0);
   EXPECT_DOUBLE_EQ(m.contact.tissue_tissue_stiffness_n_per_mm, 1.5);
   EXPECT_DOUBLE_EQ(m.contact.tool_bone_stiffness_n_per_mm, 7.0);
+  EXPECT_DOUBLE_EQ(m.contact.thread_bone_stiffness_n_per_mm, 30.0);
+  EXPECT_DOUBLE_EQ(m.contact.thread_bone_reach_mm, 4.0);
   EXPECT_DOUBLE_EQ(m.contact.bone_stiffness_n_per_mm, ContactOptions{}.bone_stiffness_n_per_mm);
 }
 

@@ -198,7 +198,14 @@ struct ContactOptions {
   double tool_volume_stiffness_n_per_mm = 20.0;   ///< sharp point (awl), per plane, N/mm
   double thread_tissue_stiffness_n_per_mm = 1.0;  ///< per contact point (both sides), N/mm
   double tissue_tissue_stiffness_n_per_mm = 2.0;  ///< per contact point (both sides), N/mm
-  double bone_stiffness_n_per_mm = 2.0;       ///< tissue-bone, bone tip-tissue, thread-bone, N/mm
+  double bone_stiffness_n_per_mm = 2.0;           ///< tissue-bone, bone tip-tissue, N/mm
+  /// Thread-bone, per contact point, N/mm. A suture is never meant to enter bone (it runs out of
+  /// the anchor's hole), so its bone contacts hold at any depth the search reaches
+  /// (thread_bone_reach_mm) instead of letting go past max_depth as tissue contacts do; stiff
+  /// enough that a limb pulled round the head by tens of newtons stays within ~1 mm of it.
+  double thread_bone_stiffness_n_per_mm = 20.0;
+  /// How deep inside bone a thread point still finds the surface that pushes it out, mm.
+  double thread_bone_reach_mm = 3.0;
   double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the kinematic tool, per part, N/mm
   /// Sharp points (awl) also hold the material they enter and their path's surface crossings
   /// (docs/contact-model.md "Sharp points"); false only to show what happens without.
