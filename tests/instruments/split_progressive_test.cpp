@@ -152,7 +152,7 @@ std::string Trace(const Model& m, const State& s, const sim::Workspace& ws,
 // A path of the scissors through the sheet: the tool tilted `tilt_deg` out of the sheet about
 // y, the tips at z = tip_z_mm (the sheet spans z in [-0.5, 0.5]) advancing 0.4 mm per step
 // along x from x = 3 in the blade plane y = 0.3, the jaw closing linearly to `jaw_end` at step
-// 150. `steps` steps are run; the cut must reach min_front_mm (the x of the last cut event's
+// 150. `steps` steps are run; the cut must reach min_front_mm (the largest x of a cut event's
 // position) and the sheet must be in two pieces behind the blades for x in [5, open_to_mm].
 struct SheetPath {
   const char* name;
@@ -201,24 +201,6 @@ void RunSheetPath(const SheetPath& path) {
     const std::vector<std::size_t> inverted = InvertedNow(b);
     ASSERT_TRUE(inverted.empty()) << "step " << k << ", inverted: " << Trace(m, s, ws, inverted);
     const std::vector<std::size_t> lone = TetsWithoutFaceNeighbour(b);
-    if (!lone.empty()) {  // DEBUG
-      const mesh::Tet& L = b.tets[lone[0]];
-      for (std::int32_t n : L) {
-        std::printf("node %d rest (%.4f %.4f %.4f) now (%.3f %.3f %.3f)\n", n, b.x_rest(0, n),
-                    b.x_rest(1, n), b.x_rest(2, n), b.x(0, n), b.x(1, n), b.x(2, n));
-        for (std::int32_t q = 0; q < b.x.cols(); ++q)
-          if (q != n && b.x_rest.col(q) == b.x_rest.col(n))
-            std::printf("  twin %d now (%.3f %.3f %.3f)\n", q, b.x(0, q), b.x(1, q), b.x(2, q));
-      }
-      for (std::size_t t = 0; t < b.tets.size(); ++t) {
-        if (!b.tet_alive[t]) continue;
-        int sh = 0;
-        for (std::int32_t n : b.tets[t]) sh += std::count(L.begin(), L.end(), n);
-        if (sh >= 2)
-          std::printf("  tet %zu (%d %d %d %d) shares %d\n", t, b.tets[t][0], b.tets[t][1],
-                      b.tets[t][2], b.tets[t][3], sh);
-      }
-    }
     ASSERT_TRUE(lone.empty()) << "step " << k << ", no face neighbour: " << Trace(m, s, ws, lone);
   }
   const SoftBodyState& b = s.soft_bodies[0];
