@@ -22,8 +22,9 @@ struct CutEdge {
 struct Piece {
   std::array<std::int64_t, 4> v{};
   bool crossed = false;
-  std::int32_t parent = -1;  // the tet it comes from
-  bool whole = false;        // the parent itself (a crossed tet the cut does not divide)
+  std::int32_t parent = -1;    // the tet it comes from
+  bool whole = false;          // the parent itself (a crossed tet the cut does not divide)
+  bool one_sided_rim = false;  // a rim piece lying on one side: it takes that side's nodes
 };
 
 double SignedVolume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3) {
@@ -217,8 +218,19 @@ class RestTwins {
     for (std::int32_t n = first_made; n < static_cast<std::int32_t>(sb.x_rest.cols()); ++n)
       made_.emplace_back(Key(n), n);
     std::sort(made_.begin(), made_.end());
+    // The original nodes copies were made of (same rest position): twins of their copies.
+    const std::size_t made_count = made_.size();
+    if (made_count == 0) return;
+    for (std::int32_t n = 0; n < first_made; ++n) {
+      const auto k = Key(n);
+      const auto it =
+          std::lower_bound(made_.begin(), made_.begin() + made_count, std::make_pair(k, -1));
+      if (it != made_.begin() + made_count && it->first == k) made_.emplace_back(k, n);
+    }
+    std::sort(made_.begin(), made_.end());
   }
-  /// n and the made nodes at its rest position, ascending.
+  /// n and the nodes at its rest position (made by splits, or the original they copy),
+  /// ascending.
   std::vector<std::int32_t> Of(std::int32_t n) const {
     std::vector<std::int32_t> out{n};
     const auto k = Key(n);
@@ -370,6 +382,34 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
   // original tet takes the diagonal bisection in cut order gives it (from the point of the
   // earlier cut edge to the far end of the later one), so both tets sharing the face split it
   // alike.
+  // A node of the cut surface: an edge point of this cut, a node made by an earlier one, or a
+  // node of a crossed tet on the plane (snapped).
+  auto crossed_on_plane = [&](Id v) {
+    const auto it = std::lower_bound(side.begin(), side.end(),
+                                     std::make_pair(static_cast<std::int32_t>(v), -2));
+    return it != side.end() && it->first == v && it->second == 0;
+  };
+  auto on_plane = [&](Id v) { return v < 0 || v >= first_made || crossed_on_plane(v); };
+  // The side (+1 / -1) a rim piece lies on, 0 if it straddles the plane (nodes off the cut
+  // surface beyond snap_fraction of its longest edge on both sides: the cut ends there) or has
+  // no node off it. A rim piece on one side holds the crack tip's edge points and on-plane
+  // nodes like the crossed pieces on that side: keeping the positive side's node there would
+  // join the negative side's rim to the positive side and leave the negative copy held by a
+  // lone crossed piece (a flap hanging on one edge, docs/operations.md).
+  auto RimPieceSide = [&](const Corners& c) {
+    double longest = 0;
+    for (const auto& k : kEdges)
+      longest = std::max(longest, (position(c[k[0]]) - position(c[k[1]])).norm());
+    const double tol = snap_fraction * longest;
+    bool above = false, below = false;
+    for (Id v : c) {
+      if (on_plane(v)) continue;
+      const double d = dist(static_cast<std::int32_t>(v));
+      above |= d > tol;
+      below |= d < -tol;
+    }
+    return above == below ? 0 : (above ? 1 : -1);
+  };
   std::vector<Piece> pieces;
   std::vector<std::uint8_t> negative;
   for (std::int32_t t : split) {
@@ -392,6 +432,10 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       pieces.push_back(
           Piece{c, crossed, t, local.size() == 1 && c == Corners{e[0], e[1], e[2], e[3]}});
       int sgn = crossed ? local_side[i] : 0;
+      if (!crossed) {
+        sgn = RimPieceSide(c);
+        pieces.back().one_sided_rim = sgn != 0;
+      }
       if (sgn == 0) {
         Vec3 centroid = Vec3::Zero();
         for (Id v : c) centroid += position(v);
@@ -400,18 +444,23 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
       negative.push_back(sgn < 0 ? 1 : 0);
     }
   }
-  // 5. Separation: a node used on both sides (by pieces of crossed tets, or, for a node on the
-  // plane, by those and the unsplit tets around it lying on one side) has one node per side.
-  // The positive side keeps an edge point, an original node keeps its own side; the other side
-  // takes a twin: a node made earlier at the same rest position (a copy an earlier cut made: the
-  // cut goes on through it, and its side stays one piece), else a new copy. Of twins, the
-  // lowest id is the positive side's. Unsplit tets at the node on the side it does not keep are
-  // replaced by the same tet on the side's node. Pieces of the other split tets (conforming
-  // neighbours at the rim of the cut) keep their nodes: the cut ends there.
-  std::vector<std::pair<std::int64_t, std::uint8_t>> uses;  // (node, side bit) of crossed pieces
+  // 5. Separation: a node used on both sides (by pieces of crossed tets, by the rim pieces on
+  // one side for a node on the cut surface, or, for a node on the plane, by those and the
+  // unsplit tets around it lying on one side) has one node per side. The positive side keeps an
+  // edge point, an original node keeps its own side; the other side takes a twin: a node at the
+  // same rest position (a copy an earlier cut made, or the original a copy was made of: the cut
+  // goes on through it, and its side stays one piece), else a new copy. Of made twins, the
+  // lowest id (the edge point) is the positive side's. Unsplit tets at the node on the side it
+  // does not keep are replaced by the same tet on the side's node. Rim pieces straddling the
+  // plane (conforming neighbours beyond the blade's reach) keep their nodes: the cut ends there.
+  std::vector<std::pair<std::int64_t, std::uint8_t>> uses;  // (node, side bit)
   for (std::size_t i = 0; i < pieces.size(); ++i) {
-    if (!pieces[i].crossed) continue;
-    for (std::int64_t v : pieces[i].v) uses.emplace_back(v, negative[i] ? 2 : 1);
+    if (pieces[i].crossed) {
+      for (std::int64_t v : pieces[i].v) uses.emplace_back(v, negative[i] ? 2 : 1);
+    } else if (pieces[i].one_sided_rim) {
+      for (std::int64_t v : pieces[i].v)
+        if (on_plane(v)) uses.emplace_back(v, negative[i] ? 2 : 1);
+    }
   }
   std::sort(uses.begin(), uses.end());
   std::vector<std::array<std::int32_t, 4>> parents;
@@ -443,7 +492,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     // too (else the two sides stay joined there). On a fresh mesh these all lie on the node's
     // own side; after earlier cuts they may lie on both.
     around.clear();
-    if (v >= 0 && class_of(static_cast<std::int32_t>(v)) == 0) {
+    if (v >= 0 && on_plane(v)) {
       UnsplitTetsAt(sb, static_cast<std::int32_t>(v), split, tree, point, normal, snap_fraction,
                     first_made, &near, &around);
       for (const auto& [t, sgn] : around) sides |= sgn < 0 ? 2 : 1;
@@ -460,10 +509,14 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
     }
     const auto n = static_cast<std::int32_t>(v);
     std::vector<std::int32_t> set = twins.Of(n);  // ascending, n included
-    if (n < first_made) {
-      const std::int32_t other = set.size() > 1 ? set[1] : new_copy(n);
-      sided.push_back(dist(n) < 0 ? SideNodes{v, other, n} : SideNodes{v, n, other});
+    if (set[0] < first_made) {
+      // An original node (n, or the original n is a copy of) keeps its own side; the other
+      // side takes its copy (else a copy of a copy would split that side at the node).
+      const std::int32_t orig = set[0];
+      const std::int32_t other = set.size() > 1 ? set[1] : new_copy(orig);
+      sided.push_back(dist(orig) < 0 ? SideNodes{v, other, orig} : SideNodes{v, orig, other});
     } else {
+      // Made nodes: the edge point (lower id) is the positive side's, its copy the negative's.
       sided.push_back({v, set[0], set.size() > 1 ? set[1] : new_copy(set[0])});
     }
     // Unsplit tets at n on the side whose node is not n take that side's node.
@@ -488,7 +541,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
                            [](const SideNodes& sn, std::int64_t x) { return sn.node < x; });
       std::int32_t id =
           v >= 0 ? static_cast<std::int32_t>(v) : n0 + static_cast<std::int32_t>(-1 - v);
-      if (pieces[i].crossed && it != sided.end() && it->node == v)
+      if ((pieces[i].crossed || pieces[i].one_sided_rim) && it != sided.end() && it->node == v)
         id = negative[i] ? it->negative : it->positive;
       t[static_cast<std::size_t>(k)] = id;
     }

@@ -24,8 +24,7 @@ void ReadScissors(const YamlSection& ops, ScissorsOptions* o) {
   if (mode == "remove") {
     o->mode = CutMode::kRemove;
   } else if (mode == "split") {
-    s.reader().Fail(s.Get("mode"), s.Field("mode"),
-                    "split mode is not available yet (docs/operations.md); use remove");
+    o->mode = CutMode::kSplit;
   } else {
     s.reader().Fail(s.Get("mode"), s.Field("mode"), "expected remove or split, got '" + mode + "'");
   }

@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <numeric>
 
 #include "../collision/clip_reference.h"
 #include "arthrosim/core/parallel.h"
@@ -23,6 +22,7 @@ using testing::DetailNumber;
 using testing::EventsOf;
 using testing::GridMesh;
 using testing::GridModel;
+using testing::kMinSplitQuality;
 using testing::SceneRun;
 using testing::ToolInput;
 
@@ -184,10 +184,6 @@ TEST(ScissorsSplit, BitIdenticalWithOneAndTwoThreads) {
 
 // ---- Split mode -------------------------------------------------------------------------
 
-// The quality every piece of a split keeps with the default snap_fraction 0.2 (radius ratio;
-// the grids' Kuhn tets have 0.72). Measured worst over the 300 random planes below: 0.039.
-constexpr double kMinSplitQuality = 0.03;
-
 void ExpectValidMesh(const SoftBodyState& b) {
   for (std::size_t t = 0; t < b.tets.size(); ++t) {
     if (!b.tet_alive[t]) continue;
@@ -234,118 +230,7 @@ TEST(ScissorsSplit, CutsTheBarInTwoConservingVolumeWithValidElements) {
   EXPECT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0);
 }
 
-// The number of alive elements of body 0 inverted (signed volume <= 0) in the current
-// configuration.
-int InvertedNow(const SoftBodyState& b) {
-  int n = 0;
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    if (!b.tet_alive[t]) continue;
-    const mesh::Tet& e = b.tets[t];
-    const Vec3 a = b.x.col(e[0]);
-    n += (b.x.col(e[1]) - a).dot((b.x.col(e[2]) - a).cross(b.x.col(e[3]) - a)) > 0 ? 0 : 1;
-  }
-  return n;
-}
-
-// Split mode, 150 steps of continuous cutting through the sheet of ScissorsCut.
-// ProgressiveCuttingOverOneHundredFiftySteps (blade plane y = 0.3), the scissors held as a
-// surgeon holds them to a membrane: tilted 30 degrees out of the sheet, the tips 1 mm below it,
-// so the shaft (4.5 mm across) stays clear of the 1 mm sheet and only the blades meet it. Every
-// step: positions finite, rest volume conserved to 1e-9, no element inverted in the current
-// configuration. At the end: every element positive at rest with radius ratio >=
-// kMinSplitQuality, the cut ran the sheet's length (front > 60 mm, as in remove mode) and opened
-// behind the blades (x in [5, 55] in two pieces, one per held side).
-// DISABLED: every per-step guarantee holds over all 150 steps (worst radius ratio 0.0618, two
-// pieces), but the cut stops at x = 57.55 mm: from step ~133 (jaw > 0.8) the freed sheet rides
-// up onto the nearly closed blades and nothing more is crossed. And the path is not robust: with
-// the tool tilted 25 degrees elements invert at step 63, closing only to 0.8 at step 73, tips
-// 1.5 mm below the sheet at step 121 (remove mode on these paths: step 137, none, 138; on the
-// untilted path of the remove test, where the shaft's end ploughs the slit, remove mode
-// inverts elements at steps 14-19 and 137-150). Before the blades skipped the cut surface
-// (collision/contact_tool.cpp) elements inverted from step 3 and the solve diverged at 142.
-// This is why `operations.scissors.mode: split` is still rejected by the scenario loader.
-TEST(ScissorsSplit, DISABLED_ProgressiveSplitCuttingOverOneHundredFiftySteps) {
-  Model m = GridModel(GridMesh(Vec3(0, -4, -0.5), {66, 8, 1}, 1.0),
-                      [](const Vec3& p) { return std::abs(std::abs(p.y()) - 4) < 0.01; });
-  m.operations.scissors.mode = CutMode::kSplit;
-  SceneRun run(m);
-  auto& [s, ws] = run;
-  const double v0 = AliveRestVolume(s, 0);
-  const std::size_t tets0 = s.soft_bodies[0].tets.size();
-  const double tilt = 30.0 * std::acos(-1.0) / 180.0;
-  const Vec3 forward(std::cos(tilt), 0, -std::sin(tilt)),
-      opening(std::sin(tilt), 0, std::cos(tilt));
-  const int steps = 150;
-  int cut_steps = 0;
-  double front = -1;
-  for (int k = 0; k <= steps; ++k) {
-    const double tip_x = 3.0 + 0.4 * k;
-    const InputFrame in =
-        ToolInput(m, "scissors", Vec3(tip_x, 0.3, -1.0), opening, forward, 0.9 * k / steps, 0);
-    sim::Step(m, in, &s, &ws);
-    ASSERT_TRUE(s.soft_bodies[0].x.allFinite()) << "step " << k;
-    for (const Event& e : EventsOf(s, "cut")) {
-      ++cut_steps;
-      EXPECT_NE(e.detail.find("mode=split"), std::string::npos);
-      front = std::max(front, e.position_mm.x());
-    }
-    ASSERT_NEAR(AliveRestVolume(s, 0), v0, 1e-9 * v0) << "step " << k;
-    ASSERT_EQ(InvertedNow(s.soft_bodies[0]), 0) << "step " << k;
-  }
-  EXPECT_GE(cut_steps, 80);
-  EXPECT_GT(front, 60.0);
-  const SoftBodyState& b = s.soft_bodies[0];
-  ExpectValidMesh(b);
-  double worst = 1;
-  for (std::size_t t = tets0; t < b.tets.size(); ++t) {
-    if (!b.tet_alive[t]) continue;
-    const mesh::Tet& e = b.tets[t];
-    worst = std::min(worst, RadiusRatio(b.x_rest.col(e[0]), b.x_rest.col(e[1]), b.x_rest.col(e[2]),
-                                        b.x_rest.col(e[3])));
-  }
-  EXPECT_GE(worst, kMinSplitQuality);
-  std::printf("%d cut steps, front x %.2f mm, %zu -> %zu tets, worst radius ratio %.4f\n",
-              cut_steps, front, tets0, b.tets.size(), worst);
-  // Behind the blades the cut opened: the alive tets whose rest centroid lies in x in [5, 55]
-  // form exactly two connected pieces (tets sharing a node connect), one holding the sheet's
-  // held side y = -4, the other the side y = +4. (The cut follows the blade plane in the
-  // current configuration, which the blades deform, so at rest it wanders off y = 0.3.)
-  std::vector<std::int32_t> root(static_cast<std::size_t>(b.x.cols()));
-  std::iota(root.begin(), root.end(), 0);
-  auto find = [&](std::int32_t i) {
-    while (root[static_cast<std::size_t>(i)] != i) i = root[static_cast<std::size_t>(i)];
-    return i;
-  };
-  std::vector<std::uint8_t> used(root.size(), 0);
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    if (!b.tet_alive[t]) continue;
-    Vec3 c = Vec3::Zero();
-    for (std::int32_t n : b.tets[t]) c += 0.25 * b.x_rest.col(n);
-    if (c.x() < 5 || c.x() > 55) continue;
-    for (std::int32_t n : b.tets[t]) {
-      used[static_cast<std::size_t>(n)] = 1;
-      root[static_cast<std::size_t>(find(n))] = find(b.tets[t][0]);
-    }
-  }
-  std::vector<std::int32_t> pieces;
-  std::vector<std::uint8_t> held;  // per piece: bit 1 holds y = -4, bit 2 holds y = +4
-  for (std::int32_t n = 0; n < static_cast<std::int32_t>(root.size()); ++n) {
-    if (!used[static_cast<std::size_t>(n)]) continue;
-    const std::int32_t r = find(n);
-    auto it = std::find(pieces.begin(), pieces.end(), r);
-    if (it == pieces.end()) {
-      pieces.push_back(r);
-      held.push_back(0);
-      it = pieces.end() - 1;
-    }
-    const double y = b.x_rest(1, n);
-    held[static_cast<std::size_t>(it - pieces.begin())] |= y < -3.99 ? 1 : (y > 3.99 ? 2 : 0);
-  }
-  ASSERT_EQ(pieces.size(), 2u);
-  EXPECT_EQ(held[0] | held[1], 3);
-  EXPECT_NE(held[0], 3);
-  EXPECT_NE(held[1], 3);
-}
+// The progressive split cut of a sheet over 150 steps, on four paths: split_progressive_test.cpp.
 
 // Each alive tet of body 0 on one side of the plane: no tet has nodes farther than `tol_mm`
 // from it on both sides.

@@ -5,8 +5,11 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
 #include <functional>
 #include <numeric>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include "arthrosim/input/script_source.h"
@@ -21,11 +24,19 @@ namespace {
 
 const std::string kSource = ARTHROSIM_SOURCE_DIR;
 
-// The shoulder scenario with the scissors switched to split mode in the Model (the scenario
-// loader still rejects `operations.scissors.mode: split`, docs/operations.md).
+// The shoulder scenario with `scissors: {mode: split}` added to its operations section.
 Model SplitShoulder() {
-  Model m = io::LoadScenario(kSource + "/scenarios/rotator_cuff_repair.yaml");
-  m.operations.scissors.mode = CutMode::kSplit;
+  const std::string path = kSource + "/scenarios/rotator_cuff_repair.yaml";
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  const std::string key = "\noperations:\n";
+  const std::size_t at = yaml.find(key);
+  if (at == std::string::npos) throw std::runtime_error("no operations section in " + path);
+  yaml.insert(at + key.size(), "  scissors: {mode: split}\n");
+  Model m = io::LoadScenarioFromText(yaml, path);
+  if (m.operations.scissors.mode != CutMode::kSplit) throw std::runtime_error("not split mode");
   return m;
 }
 

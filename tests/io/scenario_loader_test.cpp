@@ -143,15 +143,19 @@ TEST_F(ScenarioLoaderTest, OperationsThresholdsAreCheckedKeys) {
   EXPECT_EQ(negative.field(), "operations.retriever.dist_limit");
 }
 
-// Split mode is rejected until progressive split cutting holds (docs/operations.md, Scissors).
-TEST_F(ScenarioLoaderTest, ScissorsModeIsRemoveSplitIsNotYetAccepted) {
+// Scissors mode: remove (the default) or split; anything else is an error naming the field.
+TEST_F(ScenarioLoaderTest, ScissorsModeIsRemoveOrSplit) {
   EXPECT_EQ(LoadScenarioFromText(Edit("seed: 7", "seed: 7"), Path()).operations.scissors.mode,
             CutMode::kRemove);  // the default
   EXPECT_EQ(LoadScenarioFromText(Edit("seed: 7", "seed: 7\noperations: {scissors: {mode: remove}}"),
                                  Path())
                 .operations.scissors.mode,
             CutMode::kRemove);
-  for (const char* mode : {"split", "slice"}) {
+  EXPECT_EQ(LoadScenarioFromText(Edit("seed: 7", "seed: 7\noperations: {scissors: {mode: split}}"),
+                                 Path())
+                .operations.scissors.mode,
+            CutMode::kSplit);
+  for (const char* mode : {"slice", "Split", ""}) {
     const InputError e = LoadError(
         Edit("seed: 7", std::string("seed: 7\noperations: {scissors: {mode: ") + mode + "}}"));
     EXPECT_EQ(e.field(), "operations.scissors.mode") << mode;
