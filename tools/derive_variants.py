@@ -2,7 +2,7 @@
 """Derives the trainee variants that are the expert script with one error from
 trajectories/rotator_cuff_repair_expert.yaml, so they follow every re-tune of the expert.
 
-  novice_bite: the second bite taken BITE_X mm along x from bite_target_1 (~4.4 mm from the torn
+  novice_bite: the second bite taken BITE_X mm along x from bite_target_1 (~2.7 mm from the torn
                edge) instead of the expert's aim; every other line the expert's.
   novice_knot: the knot pusher's button-2 push (which slides the knot down onto its target)
                replaced by a wait of the same length; every other line the expert's.
