@@ -108,8 +108,11 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
   const double rt = 0.5 * tm.diameter_mm;
   if (bvh.empty()) return;
   const Box bounds = bvh.Bounds();
-  const double reach = obstacle == Kind::kBone ? rt + P.alarm_distance_mm + P.thread_bone_reach_mm
-                                               : std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
+  const double reach = std::max(rt + P.alarm_distance_mm, P.max_depth_mm);
+  // Bone: a node that went deeper than `reach` still finds the surface that pushes it out, down
+  // to thread_bone_reach_mm below the alarm band (its own query, below); 0 for tissue.
+  const double deep_reach =
+      obstacle == Kind::kBone ? rt + P.alarm_distance_mm + P.thread_bone_reach_mm : 0.0;
   const std::size_t ne = tm.initial.edges.size();
   const Eigen::Index nn = x.cols();
   ContactTaskScratch& scratch = cb->scratch;
@@ -176,22 +179,32 @@ void ThreadSurface(ContactBuilder* cb, int thread, Kind obstacle, int obstacle_i
   }
   BlockAroundPiercings(tm, &scratch);
   // Nodes.
+  const Box deep_bounds = bounds.Inflated(deep_reach);
   for (Eigen::Index v = 0; v < nn; ++v) {
     const std::int32_t node = static_cast<std::int32_t>(v);
-    if (!near_node[v] || blocked_node[v] || !cb->ThreadAlive(thread, node) ||
-        cb->ThreadFixed(thread, node)) {
+    if (blocked_node[v] || !cb->ThreadAlive(thread, node) || cb->ThreadFixed(thread, node)) {
       continue;
     }
     const Simplex p = PointSimplex(x.col(v));
     const Box pbox = SimplexBox(p);
-    // The node's query box lies inside its segment's: filtering that segment's candidates gives
-    // exactly the triangles a query would (same overlap test, ascending).
-    const Box q = pbox.Inflated(reach);
-    tris.clear();
-    for (std::int32_t t : seg_tris[node_seg[v]]) {
-      if (bvh.TriangleBox(t).Overlaps(q)) tris.push_back(t);
+    Nearest n;
+    if (near_node[v]) {
+      // The node's query box lies inside its segment's: filtering that segment's candidates
+      // gives exactly the triangles a query would (same overlap test, ascending).
+      const Box q = pbox.Inflated(reach);
+      tris.clear();
+      for (std::int32_t t : seg_tris[node_seg[v]]) {
+        if (bvh.TriangleBox(t).Overlaps(q)) tris.push_back(t);
+      }
+      n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, &scratch, (*hint)[v]);
     }
-    const Nearest n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, &scratch, (*hint)[v]);
+    // Bone, nothing within `reach` (a triangle that near would be a candidate): the node may
+    // have gone deeper; its own query out to deep_reach (cache slot v) finds the surface.
+    if (deep_reach > reach && !(n.found && n.dist <= reach * (1 - 1e-6)) &&
+        deep_bounds.Overlaps(pbox)) {
+      query(static_cast<std::size_t>(v), pbox.Inflated(deep_reach), &tris);
+      n = NearestOnSurface(p, pbox, tris, bvh, pos, s.local_tris, &scratch, (*hint)[v]);
+    }
     if (n.found) (*hint)[v] = n.tri;
     if (!n.found || !InContact(n, rt, P, obstacle)) continue;
     ThreadSurfaceContact(cb, thread, ThreadPoint(thread, node, node, 0.0), n, obstacle,
