@@ -396,7 +396,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
   // nodes like the crossed pieces on that side: keeping the positive side's node there would
   // join the negative side's rim to the positive side and leave the negative copy held by a
   // lone crossed piece (a flap hanging on one edge, docs/operations.md).
-  auto RimPieceSide = [&](const Corners& c) {
+  auto rim_piece_side = [&](const Corners& c) {
     double longest = 0;
     for (const auto& k : kEdges)
       longest = std::max(longest, (position(c[k[0]]) - position(c[k[1]])).norm());
@@ -433,7 +433,7 @@ SplitResult SplitTetsByPlane(const Model& model, int body, std::span<const std::
           Piece{c, crossed, t, local.size() == 1 && c == Corners{e[0], e[1], e[2], e[3]}});
       int sgn = crossed ? local_side[i] : 0;
       if (!crossed) {
-        sgn = RimPieceSide(c);
+        sgn = rim_piece_side(c);
         pieces.back().one_sided_rim = sgn != 0;
       }
       if (sgn == 0) {

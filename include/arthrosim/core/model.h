@@ -204,7 +204,8 @@ struct ContactOptions {
   /// (thread_bone_reach_mm) instead of letting go past max_depth as tissue contacts do; stiff
   /// enough that a limb pulled round the head by tens of newtons stays within ~1 mm of it.
   double thread_bone_stiffness_n_per_mm = 20.0;
-  /// How deep inside bone a thread point still finds the surface that pushes it out, mm.
+  /// How far below the alarm band inside bone a thread node (not a segment interior) still
+  /// finds the surface that pushes it out, mm.
   double thread_bone_reach_mm = 3.0;
   double tool_bone_stiffness_n_per_mm = 5.0;  ///< reaction on the kinematic tool, per part, N/mm
   /// Sharp points (awl) also hold the material they enter and their path's surface crossings
