@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "arthrosim/collision/instrument_shape.h"
+#include "arthrosim/core/soft_nodes.h"
 #include "arthrosim/physics/constraints.h"
 #include "suture_ops.h"
 
@@ -136,16 +137,21 @@ void TetAt(const State& state, int body, const Vec3& p, std::array<std::int32_t,
   }
 }
 
-// Distance (mm) from p to the nearest node of the region `tendon_edge` on `body`, or -1 if the
-// scenario has no such region on that body.
+// Distance (mm) from p to the nearest node of the region `tendon_edge` on `body` that still
+// belongs to the tissue (NodesInAliveTets: debridement leaves debris nodes where they were cut,
+// which a reduced tendon leaves behind), or -1 if the scenario has no such region on that body
+// or none of its nodes is left.
 double DistanceToTendonEdge(const Model& model, const State& state, int body, const Vec3& p) {
   const int r = model.FindRegion("tendon_edge");
   if (r < 0) return -1;
   const Region& region = model.regions[static_cast<std::size_t>(r)];
   if (region.body != model.soft_bodies[static_cast<std::size_t>(body)].name) return -1;
   double best = -1;
-  const Points& x = state.soft_bodies[static_cast<std::size_t>(body)].x;
+  const SoftBodyState& tissue = state.soft_bodies[static_cast<std::size_t>(body)];
+  const std::vector<std::uint8_t> in_tissue = NodesInAliveTets(tissue);
+  const Points& x = tissue.x;
   for (const std::int32_t n : region.nodes) {
+    if (!in_tissue[static_cast<std::size_t>(n)]) continue;
     const double d = (x.col(n) - p).norm();
     if (best < 0 || d < best) best = d;
   }

@@ -115,6 +115,45 @@ TEST(ScorpionNeedle, BiteDistanceIsTheDistanceToTheTendonEdge) {
   EXPECT_GT(Detail(pass, "bite_to_edge_mm"), 1.0);
 }
 
+// Debridement leaves edge nodes without elements where they were cut (debris); once the tendon
+// is drawn away from them (a reduction), such a node can lie nearer the bite than the edge the
+// tissue has. The bite distance must skip it: here one edge node loses its elements and is put
+// 1 mm from where the pass enters; the distance stays the live edge's.
+TEST(ScorpionNeedle, BiteDistanceSkipsEdgeNodesLeftWithoutTissue) {
+  const Model m = testing::SlabModel();
+  Vec3 entry_mm = Vec3::Zero();
+  {
+    State s = MakeInitialState(m);
+    SlotDriver d(m, &s, "scorpion_needle");
+    Pass log;
+    const Event pass = LoadAndPass(&d, &log);
+    ASSERT_EQ(pass.kind, "suture_pass");
+    entry_mm = DetailPoint(pass, "entry_mm");
+  }
+  State s = MakeInitialState(m);
+  const Region& edge = m.regions[static_cast<std::size_t>(m.FindRegion("tendon_edge"))];
+  ASSERT_FALSE(edge.nodes.empty());
+  const std::int32_t debris = edge.nodes.front();
+  SoftBodyState& tendon = s.soft_bodies[0];
+  int killed = 0;
+  for (std::size_t t = 0; t < tendon.tets.size(); ++t)
+    for (const std::int32_t node : tendon.tets[t])
+      if (node == debris && tendon.tet_alive[t]) {
+        tendon.tet_alive[t] = 0;
+        ++killed;
+      }
+  ASSERT_GT(killed, 0);
+  tendon.x.col(debris) = entry_mm + Vec3(0, 0, -1);
+  tendon.x_rest.col(debris) = tendon.x.col(debris);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  const Event pass = LoadAndPass(&d, &log);
+  ASSERT_EQ(pass.kind, "suture_pass");
+  const Vec3 entry = DetailPoint(pass, "entry_mm");
+  ASSERT_LT((entry - entry_mm).norm(), 2.0) << "the pass entered elsewhere";
+  EXPECT_NEAR(Detail(pass, "bite_to_edge_mm"), 30.0 - entry.x(), 0.5);
+}
+
 TEST(ScorpionNeedle, StitchesHoldAsTheTendonMovesAndNothingDiverges) {
   // A firm grasp (50 N/mm, 5 mm reach) so the grasper can lift the stiff slab's end.
   const Model m = testing::SlabModel("operations: {grasper: {stiffness: 50, dist_limit: 5}}\n");
