@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 #include "arthrosim/core/enum_names.h"
@@ -14,6 +15,9 @@ namespace {
 
 constexpr int kClosureArcPoints = 16;  // chords stay within cos(pi/32) of the sphere radius
 constexpr double kClosureRadiusScale = 3.0;
+// Beyond this many crossings (after reduction) the determinant is not computed (its exact
+// elimination stays within 128 bits: Hadamard's bound, rows of norm sqrt(6), 6^30 < 2^78).
+constexpr int kMaxDeterminantCrossings = 60;
 
 // A unit vector perpendicular to u.
 Vec3 AnyPerpendicular(const Vec3& u) {
@@ -114,6 +118,30 @@ KnotIdentification Classify(const std::vector<GaussEntry>& code) {
 
 bool SameClass(const KnotIdentification& a, const KnotIdentification& b) {
   return a.type == b.type && a.half_hitches == b.half_hitches;
+}
+
+// The knot determinant (no Reidemeister move changes it) checks the class read off a reduced
+// diagram and decides where the diagram does not: moves I and II cannot simplify every diagram
+// (a tangle of the tails may need move III), and a diagram they leave with 6 or 9 crossings may
+// be a half hitch all the same. A class is kept when its determinant agrees (none 1, a half hitch
+// 3, two half hitches 9, k half hitches 3^k); otherwise determinant 1 is no knot, 3 a half hitch,
+// and anything else (9 without a granny's or square's diagram: the determinant does not tell
+// them apart; 5, 7, ...: knots no throw makes) unknown.
+void ClassifyByDeterminant(const std::vector<GaussEntry>& code, KnotIdentification* r) {
+  const std::int64_t det = KnotDeterminant(code);
+  std::int64_t expected = 1;
+  for (int h = 0; h < r->half_hitches; ++h) expected *= 3;
+  if (r->type != KnotType::kUnknown && det == expected) return;
+  if (det == 1) {
+    r->type = KnotType::kNone;
+    r->half_hitches = 0;
+  } else if (det == 3) {
+    r->type = KnotType::kHalfHitch;
+    r->half_hitches = 1;
+  } else {
+    r->type = KnotType::kUnknown;
+    r->half_hitches = 0;
+  }
 }
 
 // True if the crossing passed at position k is nugatory: every other crossing passed between its
@@ -263,6 +291,71 @@ void ReduceGaussCode(std::vector<GaussEntry>* code) {
   }
 }
 
+std::int64_t KnotDeterminant(const std::vector<GaussEntry>& code) {
+  const int m = static_cast<int>(code.size());
+  const int n = m / 2;  // crossings = arcs (each crossing has one under passage)
+  if (n <= 1) return 1;
+  if (n > kMaxDeterminantCrossings) return -1;
+  // Crossing ids of the code, renumbered 0..n-1 in order of first appearance.
+  std::vector<int> id_of(static_cast<std::size_t>(m), -1);
+  std::vector<int> ids;
+  for (const GaussEntry& e : code) {
+    const auto it = std::find(ids.begin(), ids.end(), e.crossing);
+    if (it == ids.end()) ids.push_back(e.crossing);
+  }
+  if (static_cast<int>(ids.size()) != n) return -1;  // not two passages per crossing
+  // Arc k starts after the k-th under passage (in code order) and ends at the next one: an under
+  // passage ends arc (k - 1) and starts arc k; an over passage lies on the arc it interrupts.
+  std::vector<int> unders_before(static_cast<std::size_t>(m), 0);
+  int unders = 0;
+  for (int i = 0; i < m; ++i) {
+    unders_before[static_cast<std::size_t>(i)] = unders;
+    if (!code[static_cast<std::size_t>(i)].over) ++unders;
+  }
+  if (unders != n) return -1;
+  const auto arc_before = [&](int i) {
+    return (unders_before[static_cast<std::size_t>(i)] + n - 1) % n;
+  };
+  // Colouring matrix: per crossing, 2 x (over arc) - (arc in) - (arc out) (Fox; Alexander at -1).
+  std::vector<__int128> a(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), 0);
+  const auto at = [&](int r, int c) -> __int128& {
+    return a[static_cast<std::size_t>(r) * static_cast<std::size_t>(n) +
+             static_cast<std::size_t>(c)];
+  };
+  for (int i = 0; i < m; ++i) {
+    const GaussEntry& e = code[static_cast<std::size_t>(i)];
+    const int row = static_cast<int>(std::find(ids.begin(), ids.end(), e.crossing) - ids.begin());
+    if (e.over) {
+      at(row, arc_before(i)) += 2;
+    } else {
+      at(row, arc_before(i)) -= 1;                                   // the arc that ends here
+      at(row, unders_before[static_cast<std::size_t>(i)] % n) -= 1;  // the arc that starts here
+    }
+  }
+  // |det| of the minor without row 0 and column 0: fraction-free (Bareiss) elimination, exact.
+  const int k = n - 1;
+  const auto minor = [&](int r, int c) -> __int128& { return at(r + 1, c + 1); };
+  __int128 prev = 1;
+  int sign = 1;
+  for (int p = 0; p < k; ++p) {
+    int pivot = p;
+    while (pivot < k && minor(pivot, p) == 0) ++pivot;
+    if (pivot == k) return 0;
+    if (pivot != p) {
+      for (int c = 0; c < k; ++c) std::swap(minor(p, c), minor(pivot, c));
+      sign = -sign;
+    }
+    for (int r = p + 1; r < k; ++r) {
+      for (int c = p + 1; c < k; ++c)
+        minor(r, c) = (minor(r, c) * minor(p, p) - minor(r, p) * minor(p, c)) / prev;
+      minor(r, p) = 0;
+    }
+    prev = minor(p, p);
+  }
+  const __int128 det = sign * minor(k - 1, k - 1);
+  return static_cast<std::int64_t>(det < 0 ? -det : det);
+}
+
 KnotIdentification IdentifyKnot(const std::vector<Vec3>& strand) {
   const std::vector<Vec3> closed = CloseStrand(strand);
   const std::array<Vec3, 13> directions = ProjectionDirections(strand);
@@ -271,6 +364,7 @@ KnotIdentification IdentifyKnot(const std::vector<Vec3>& strand) {
     std::vector<GaussEntry> code = GaussCode(closed, directions[k]);
     ReduceGaussCode(&code);
     votes[k] = Classify(code);
+    ClassifyByDeterminant(code, &votes[k]);
   }
   // Majority; ties go to the class seen first in direction order (axes before diagonals).
   KnotIdentification best;

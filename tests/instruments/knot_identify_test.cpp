@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "arthrosim/core/rng.h"
+#include "seated_knot_fixtures.h"
 
 namespace arthrosim::instruments {
 namespace {
@@ -167,6 +168,47 @@ TEST(KnotIdentify, TrefoilCodeIsIrreducible) {
                                   {0, false, 1}, {1, true, 1},  {2, false, 1}};
   ReduceGaussCode(&code);
   EXPECT_EQ(code.size(), 6u);
+}
+
+// The knot determinant of standard diagrams (Rolfsen's table): unknot 1 (a diagram of two
+// crossings that move II removes, and a one-crossing kink), trefoil 3, figure-eight 5, granny
+// (a trefoil followed by a trefoil) 9; a code that is not a diagram gives -1.
+TEST(KnotIdentify, KnotDeterminantOfStandardDiagrams) {
+  const std::vector<GaussEntry> trefoil = {{0, true, 1},  {1, false, 1}, {2, true, 1},
+                                           {0, false, 1}, {1, true, 1},  {2, false, 1}};
+  EXPECT_EQ(KnotDeterminant(trefoil), 3);
+  const std::vector<GaussEntry> figure_eight = {{0, true, 1},   {1, false, 1}, {2, true, -1},
+                                                {3, false, -1}, {1, true, 1},  {0, false, 1},
+                                                {3, true, -1},  {2, false, -1}};
+  EXPECT_EQ(KnotDeterminant(figure_eight), 5);
+  std::vector<GaussEntry> granny = trefoil;
+  for (const GaussEntry& e : trefoil) granny.push_back({e.crossing + 3, e.over, e.sign});
+  EXPECT_EQ(KnotDeterminant(granny), 9);
+  const std::vector<GaussEntry> bigon = {
+      {0, true, 1}, {1, true, -1}, {1, false, -1}, {0, false, 1}};
+  EXPECT_EQ(KnotDeterminant(bigon), 1);
+  EXPECT_EQ(KnotDeterminant({{0, true, 1}, {0, false, 1}}), 1);
+  EXPECT_EQ(KnotDeterminant({}), 1);
+  EXPECT_EQ(KnotDeterminant({{0, true, 1}, {1, true, 1}, {0, true, 1}, {1, false, 1}}), -1);
+}
+
+// A seated half hitch whose tails run down to a portal beside each other: moves I and II cannot
+// reduce several of its projections to three crossings (IdentifyKnot said `unknown`, 8 of 13,
+// before the determinant classified such diagrams), but every projection's determinant is 3.
+TEST(KnotIdentify, SeatedHalfHitchWithTangledTailsIsAHalfHitch) {
+  const KnotIdentification id =
+      IdentifyKnot(testing::kSeatedTrefoilLimbA, testing::kSeatedTrefoilLimbB);
+  EXPECT_EQ(id.type, KnotType::kHalfHitch) << KnotTypeName(id.type) << " " << id.votes;
+  EXPECT_EQ(id.half_hitches, 1);
+  EXPECT_EQ(id.votes, 13);
+}
+
+// The determinant is not a licence to call a tangle a half hitch: limbs whose diagrams all have
+// determinant 7 (no throw of the pusher makes that knot) stay unknown.
+TEST(KnotIdentify, AKnotOfDeterminantSevenIsNotAHalfHitch) {
+  const KnotIdentification id =
+      IdentifyKnot(testing::kSeatedDeterminant7LimbA, testing::kSeatedDeterminant7LimbB);
+  EXPECT_EQ(id.type, KnotType::kUnknown) << KnotTypeName(id.type);
 }
 
 TEST(KnotIdentify, ClosureStaysOutsideTheNodes) {

@@ -11,9 +11,10 @@
 // projections; each projection gives a signed Gauss code (the crossings in order along the
 // strand: over or under, and the crossing's handedness) that Reidemeister moves I and II (and
 // the removal of nugatory crossings) reduce;
-// the reduced crossing count and writhe classify the projection, and the majority of the 13
-// decides. A half hitch is a trefoil (3 crossings, all of one handedness); two half hitches of
-// the same handedness are a granny (writhe +-6), of opposite handedness a square knot (writhe 0).
+// the reduced crossing count and writhe classify the projection (a diagram the moves cannot
+// simplify by its knot determinant: 1 none, 3 a half hitch), and the majority of the 13 decides. A
+// half hitch is a trefoil (3 crossings, all of one handedness); two half hitches of the same
+// handedness are a granny (writhe +-6), of opposite handedness a square knot (writhe 0).
 #include <cstdint>
 #include <vector>
 
@@ -69,6 +70,14 @@ std::vector<GaussEntry> GaussCode(const std::vector<Vec3>& closed, const Vec3& d
 /// a crossing's two passages: the loop untwists) and move II (two crossings of opposite sign
 /// passed over-over in a row and under-under in a row) to a cyclic Gauss code until none applies.
 void ReduceGaussCode(std::vector<GaussEntry>* code);
+
+/// The knot determinant |Alexander polynomial at -1| of the closed curve whose diagram `code` is
+/// (a cyclic signed Gauss code with two passages per crossing): |det| of the colouring matrix
+/// with one row and column removed, computed exactly. An invariant: every diagram of a knot gives
+/// the same value (unknot 1, trefoil 3, figure-eight 5, granny and square knots 9). Returns -1
+/// for a code that is not a knot diagram (a crossing without exactly one over and one under
+/// passage) or with more than 60 crossings.
+std::int64_t KnotDeterminant(const std::vector<GaussEntry>& code);
 
 /// Identifies the knot in one open strand (node positions in order along the thread, mm).
 /// Throws std::invalid_argument as CloseStrand.
