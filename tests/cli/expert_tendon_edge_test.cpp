@@ -78,8 +78,9 @@ double EdgeCentroidToFootprintMm(const State& s) {
 // below the anchor, so 10-14 mm of each lies slack between anchor and bite and the edge springs
 // back when the grasper lets go; the retriever and the cutter push it farther (docs/operations.md,
 // "On the shoulder scene" (2), with the trials that did not reduce it). A script that reduces
-// first and loads the limbs short meets it (1.52 mm) but lays a tail through the acromion and
-// seats an unidentified knot ((m) there).
+// first and loads the limbs short meets it (1.59 mm, every other expert check passing) with the
+// pass's tail turned back at bone, kept on branch reduce-first until that layout also holds the
+// suture demonstration's stitches ((m) there).
 TEST(ExpertRepair, DISABLED_TendonEdgeOnTheFootprint) {
   std::printf("tendon edge centroid to the footprint bed: %.3f mm at t = 0, %.3f mm at the end\n",
               EdgeCentroidToFootprintMm(TheRun().first), EdgeCentroidToFootprintMm(Last()));
