@@ -15,9 +15,11 @@ namespace {
 
 constexpr int kClosureArcPoints = 16;  // chords stay within cos(pi/32) of the sphere radius
 constexpr double kClosureRadiusScale = 3.0;
-// Beyond this many crossings (after reduction) the determinant is not computed (its exact
-// elimination stays within 128 bits: Hadamard's bound, rows of norm sqrt(6), 6^30 < 2^78).
-constexpr int kMaxDeterminantCrossings = 60;
+// Beyond this many crossings (after reduction) the determinant is not computed. Its exact
+// elimination multiplies two minors of order up to n - 2 before each division; a colouring
+// matrix row has norm <= sqrt(6), so by Hadamard's bound such a product is <= 6^(n - 2), within
+// a signed 128-bit integer (2^127) for n <= 48 (6^46 < 2^119).
+constexpr int kMaxDeterminantCrossings = 48;
 
 // A unit vector perpendicular to u.
 Vec3 AnyPerpendicular(const Vec3& u) {
@@ -129,6 +131,7 @@ bool SameClass(const KnotIdentification& a, const KnotIdentification& b) {
 // them apart; 5, 7, ...: knots no throw makes) unknown.
 void ClassifyByDeterminant(const std::vector<GaussEntry>& code, KnotIdentification* r) {
   const std::int64_t det = KnotDeterminant(code);
+  if (det < 0) return;  // too many crossings to compute: the diagram's class stands
   std::int64_t expected = 1;
   for (int h = 0; h < r->half_hitches; ++h) expected *= 3;
   if (r->type != KnotType::kUnknown && det == expected) return;
@@ -296,12 +299,13 @@ std::int64_t KnotDeterminant(const std::vector<GaussEntry>& code) {
   const int n = m / 2;  // crossings = arcs (each crossing has one under passage)
   if (n <= 1) return 1;
   if (n > kMaxDeterminantCrossings) return -1;
-  // Crossing ids of the code, renumbered 0..n-1 in order of first appearance.
-  std::vector<int> id_of(static_cast<std::size_t>(m), -1);
-  std::vector<int> ids;
-  for (const GaussEntry& e : code) {
-    const auto it = std::find(ids.begin(), ids.end(), e.crossing);
-    if (it == ids.end()) ids.push_back(e.crossing);
+  // Each passage's crossing, renumbered 0..n-1 in order of first appearance (the matrix row).
+  std::vector<int> ids, row_of(static_cast<std::size_t>(m));
+  for (int i = 0; i < m; ++i) {
+    const int crossing = code[static_cast<std::size_t>(i)].crossing;
+    const auto it = std::find(ids.begin(), ids.end(), crossing);
+    row_of[static_cast<std::size_t>(i)] = static_cast<int>(it - ids.begin());
+    if (it == ids.end()) ids.push_back(crossing);
   }
   if (static_cast<int>(ids.size()) != n) return -1;  // not two passages per crossing
   // Arc k starts after the k-th under passage (in code order) and ends at the next one: an under
@@ -323,9 +327,8 @@ std::int64_t KnotDeterminant(const std::vector<GaussEntry>& code) {
              static_cast<std::size_t>(c)];
   };
   for (int i = 0; i < m; ++i) {
-    const GaussEntry& e = code[static_cast<std::size_t>(i)];
-    const int row = static_cast<int>(std::find(ids.begin(), ids.end(), e.crossing) - ids.begin());
-    if (e.over) {
+    const int row = row_of[static_cast<std::size_t>(i)];
+    if (code[static_cast<std::size_t>(i)].over) {
       at(row, arc_before(i)) += 2;
     } else {
       at(row, arc_before(i)) -= 1;                                   // the arc that ends here

@@ -11,10 +11,11 @@
 // projections; each projection gives a signed Gauss code (the crossings in order along the
 // strand: over or under, and the crossing's handedness) that Reidemeister moves I and II (and
 // the removal of nugatory crossings) reduce;
-// the reduced crossing count and writhe classify the projection (a diagram the moves cannot
-// simplify by its knot determinant: 1 none, 3 a half hitch), and the majority of the 13 decides. A
-// half hitch is a trefoil (3 crossings, all of one handedness); two half hitches of the same
-// handedness are a granny (writhe +-6), of opposite handedness a square knot (writhe 0).
+// the reduced crossing count and writhe classify the projection, checked by the diagram's knot
+// determinant (where they disagree, or the moves cannot simplify the diagram: 1 none, 3 a half
+// hitch, else unknown), and the majority of the 13 decides. A half hitch is a trefoil
+// (3 crossings, all of one handedness); two half hitches of the same handedness are a granny
+// (writhe +-6), of opposite handedness a square knot (writhe 0).
 #include <cstdint>
 #include <vector>
 
@@ -76,7 +77,7 @@ void ReduceGaussCode(std::vector<GaussEntry>* code);
 /// with one row and column removed, computed exactly. An invariant: every diagram of a knot gives
 /// the same value (unknot 1, trefoil 3, figure-eight 5, granny and square knots 9). Returns -1
 /// for a code that is not a knot diagram (a crossing without exactly one over and one under
-/// passage) or with more than 60 crossings.
+/// passage) or with more than 48 crossings (its exact arithmetic would not fit 128 bits).
 std::int64_t KnotDeterminant(const std::vector<GaussEntry>& code);
 
 /// Identifies the knot in one open strand (node positions in order along the thread, mm).
