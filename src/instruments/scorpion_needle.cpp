@@ -10,6 +10,7 @@
 #include "arthrosim/collision/instrument_shape.h"
 #include "arthrosim/core/soft_nodes.h"
 #include "arthrosim/physics/constraints.h"
+#include "bone_contact.h"
 #include "suture_ops.h"
 
 namespace arthrosim::instruments {
@@ -158,7 +159,17 @@ double DistanceToTendonEdge(const Model& model, const State& state, int body, co
   return best;
 }
 
-// Button 2: the paper's penetration path and thread placement, then the stitch springs.
+// True if segment (a, b) comes within clearance_mm of any bone surface.
+bool SegmentNearBone(const State& state, const Vec3& a, const Vec3& b, double clearance_mm) {
+  for (const BoneState& bone : state.bones)
+    if (TouchBone(bone.surface, a, b, clearance_mm).triangles > 0) return true;
+  return false;
+}
+
+// Button 2: the paper's penetration path and thread placement, then the stitch springs. The
+// paper lays the free end straight on along the path; where that line would run into bone (a
+// tail under the acromion), the rest of the tail is laid back along the needle's shaft, the way
+// the needle drew it out, instead of through the bone.
 void PassThread(const Model& model, int slot, const StepContext& context, State* state) {
   const ScorpionNeedleOptions& opt = model.operations.scorpion_needle;
   const std::int64_t thread_id = ToolConstraint(*state, slot, kThreadTag);
@@ -197,10 +208,23 @@ void PassThread(const Model& model, int slot, const StepContext& context, State*
   const int step = held + through < count ? 1 : -1;
   if (held + step * through < 0 || held + step * through >= count) return;  // too short
   physics::RemoveConstraint(state, thread_id);
+  const double clearance_mm = 0.5 * model.threads[static_cast<std::size_t>(thread)].diameter_mm +
+                              model.contact.contact_distance_mm;
+  const Vec3 back_to_portal = -(tool.pose.orientation * Vec3::UnitZ());
+  Vec3 tail_dir = dir;
   for (int j = 0; held + step * j >= 0 && held + step * j < count; ++j) {
     const int n = held + step * j;
-    th.x.col(n) = j <= through ? Vec3(entry + (exit - entry) * (static_cast<double>(j) / through))
-                               : Vec3(exit + (j - through) * opt.node_spacing_mm * dir);
+    if (j <= through) {
+      th.x.col(n) = entry + (exit - entry) * (static_cast<double>(j) / through);
+    } else {
+      const Vec3 prev = th.x.col(n - step);
+      Vec3 next = prev + opt.node_spacing_mm * tail_dir;
+      if (tail_dir != back_to_portal && SegmentNearBone(*state, prev, next, clearance_mm)) {
+        tail_dir = back_to_portal;  // the tail turns where the needle drew it out
+        next = prev + opt.node_spacing_mm * tail_dir;
+      }
+      th.x.col(n) = next;
+    }
     th.v.col(n).setZero();
   }
   // The limb behind the held node follows it to the entry (each node drawn to within a rest

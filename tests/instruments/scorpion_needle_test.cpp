@@ -1,9 +1,14 @@
 // Scorpion needle on the slab scene: load the suture (button 1), take the tissue edge between
 // the jaws, pass (button 2); the thread nodes lie where the paper places them, stay attached as
-// the tendon moves 5 mm, the bite distance to `tendon_edge` is right, nothing diverges.
+// the tendon moves 5 mm, the bite distance to `tendon_edge` is right, nothing diverges; a tail
+// that would run into bone is laid back along the shaft.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 
 #include "arthrosim/core/error.h"
 #include "arthrosim/core/parallel.h"
@@ -99,6 +104,61 @@ TEST(ScorpionNeedle, PassPlacesTheNodesAsThePaperSays) {
   EXPECT_EQ(physics::FindConstraintsByTag(s, "stitch").size(),
             static_cast<std::size_t>(exit - entry + 1));
   EXPECT_TRUE(physics::FindConstraintsByTag(s, "scorpion_thread").empty());
+}
+
+// The slab scene with a bone plate (x in [18, 30], y in [0, 20], z in [11, 15] mm) over the
+// slab, across the line a passed tail is laid along (straight up from the exit, at x = 27).
+Model SlabUnderBonePlateModel() {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("arthrosim_suture_slab_plate_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream obj(dir / "plate.obj");
+    const double lo[3] = {18, 0, 11}, hi[3] = {30, 20, 15};
+    for (int k = 0; k < 8; ++k)
+      obj << "v " << (k & 1 ? hi : lo)[0] << " " << (k & 2 ? hi : lo)[1] << " "
+          << (k & 4 ? hi : lo)[2] << "\n";
+    // Twelve outward triangles (vertex k: bit 0 x, bit 1 y, bit 2 z; OBJ counts from 1).
+    obj << "f 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\n"
+           "f 3 7 8\nf 3 8 4\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n";
+  }
+  return testing::LoadSlabScenario("suture_slab_plate", 5e6,
+                                   R"(  - name: suture
+    kind: thread
+    thread: {start: [6, 10, 8], end: [46, 10, 8], nodes: 41, damping: 5, fixed_nodes: [0]}
+  - {name: plate, kind: rigid, mesh: plate.obj}
+)",
+                                   "[60, 10, 30]", R"(instruments:
+  - {name: scorpion_needle, kind: scorpion_needle, portal: lateral, tip_length: 8}
+camera: {portal: lateral, position: [50, 10, 20], look_at: [10, 10, 5]}
+)");
+}
+
+// Where the paper's straight tail would run into bone, the rest of it is laid back along the
+// needle's shaft (tool -z, here +x) from the last node clear of the bone. Fails with the paper's
+// straight layout: its last two nodes (8 and 9 mm beyond the exit) lie inside the plate.
+TEST(ScorpionNeedle, APassedTailThatWouldRunIntoBoneTurnsBackAlongTheShaft) {
+  const Model m = SlabUnderBonePlateModel();
+  ASSERT_EQ(m.bones.size(), 1u);
+  State s = MakeInitialState(m);
+  SlotDriver d(m, &s, "scorpion_needle");
+  Pass log;
+  const Event pass = LoadAndPass(&d, &log);
+  ASSERT_EQ(pass.kind, "suture_pass");
+  const int exit = static_cast<int>(Detail(pass, "exit_node"));
+  const Points& x = s.threads[0].x;
+  const double clearance_mm = 0.5 * m.threads[0].diameter_mm + m.contact.contact_distance_mm;
+  int turned_at = -1;
+  for (int n = exit; n + 1 < x.cols(); ++n) {
+    const Vec3 seg = x.col(n + 1) - x.col(n);
+    EXPECT_NEAR(seg.norm(), 1.0, 1e-9) << "node " << n;
+    if (turned_at < 0 && seg.normalized().dot(Vec3::UnitX()) > 1 - 1e-9) turned_at = n;
+    if (turned_at >= 0) EXPECT_GT(seg.normalized().dot(Vec3::UnitX()), 1 - 1e-9) << "node " << n;
+    EXPECT_LT(x(2, n + 1), 11.0 - clearance_mm + 1e-9) << "node " << n + 1 << " at the plate";
+  }
+  ASSERT_GE(turned_at, 0) << "the tail never turned";
+  EXPECT_GT(x(2, turned_at), 11.0 - clearance_mm - 1.0) << "turned no earlier than it had to";
+  EXPECT_LT(turned_at + 1, x.cols() - 1) << "some of the tail runs back along the shaft";
 }
 
 TEST(ScorpionNeedle, BiteDistanceIsTheDistanceToTheTendonEdge) {
