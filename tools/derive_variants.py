@@ -2,10 +2,12 @@
 """Derives the trainee variants that are the expert script with one error from
 trajectories/rotator_cuff_repair_expert.yaml, so they follow every re-tune of the expert.
 
-  novice_bite: the second bite taken BITE_X mm along x from bite_target_1 (~2.7 mm from the torn
+  novice_bite: the second bite taken BITE_X mm along x from bite_target_1 (~4.5 mm from the torn
                edge) instead of the expert's aim; every other line the expert's.
   novice_knot: the knot pusher's button-2 push (which slides the knot down onto its target)
                replaced by a wait of the same length; every other line the expert's.
+  novice_economy: every duration, wait, start time (`at`) and camera transition doubled: the
+               expert's steps at half speed (run it with --noise-scale 1 for the trainee noise).
 
 Each variant keeps its own header comment (everything before its `name:` line); the rest is the
 expert's text with the variant's edits. Usage: tools/derive_variants.py [--check]
@@ -22,7 +24,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TRAJ = os.path.join(ROOT, "trajectories")
 EXPERT_DESCRIPTION = ("description: the full repair in the paper's order, one anchor with two "
                       "limbs (expert, no noise)")
-BITE_X = "3.5"  # x offset of the trainee's second bite from bite_target_1, mm
+BITE_X = "15.1"  # x offset of the trainee's second bite from bite_target_1, mm
 
 
 class DeriveError(Exception):
@@ -82,6 +84,14 @@ def knot(body):
                         "where it was thrown, above its target)\n  - wait: %s\n" % push.group(1))
 
 
+def economy(body):
+    """Every duration, wait, start time and camera transition of the script doubled."""
+    def doubled(m):
+        return "%s%s" % (m.group(1), "%g" % (2 * float(m.group(2))))
+    body = re.sub(r"(\b(?:duration|transition|at): )(\d+(?:\.\d+)?)", doubled, body)
+    return re.sub(r"(  - wait: )(\d+(?:\.\d+)?)", doubled, body)
+
+
 def derived():
     body = expert_body()
     return {
@@ -91,6 +101,9 @@ def derived():
         "novice_knot": header("novice_knot") + knot(renamed(
             body, "novice_knot", "the expert repair with the knot thrown but never pushed down "
             "onto its target")),
+        "novice_economy": header("novice_economy") + economy(renamed(
+            body, "novice_economy", "the expert's steps at half speed (a trainee slow in time "
+            "and motion)")),
     }
 
 
