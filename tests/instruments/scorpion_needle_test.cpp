@@ -153,7 +153,9 @@ TEST(ScorpionNeedle, APassedTailThatWouldRunIntoBoneTurnsBackAlongTheShaft) {
     const Vec3 seg = x.col(n + 1) - x.col(n);
     EXPECT_NEAR(seg.norm(), 1.0, 1e-9) << "node " << n;
     if (turned_at < 0 && seg.normalized().dot(Vec3::UnitX()) > 1 - 1e-9) turned_at = n;
-    if (turned_at >= 0) EXPECT_GT(seg.normalized().dot(Vec3::UnitX()), 1 - 1e-9) << "node " << n;
+    if (turned_at >= 0) {
+      EXPECT_GT(seg.normalized().dot(Vec3::UnitX()), 1 - 1e-9) << "node " << n;
+    }
     EXPECT_LT(x(2, n + 1), 11.0 - clearance_mm + 1e-9) << "node " << n + 1 << " at the plate";
   }
   ASSERT_GE(turned_at, 0) << "the tail never turned";
