@@ -211,19 +211,16 @@ void PassThread(const Model& model, int slot, const StepContext& context, State*
   const double clearance_mm = 0.5 * model.threads[static_cast<std::size_t>(thread)].diameter_mm +
                               model.contact.contact_distance_mm;
   const Vec3 back_to_portal = -(tool.pose.orientation * Vec3::UnitZ());
-  Vec3 tail_dir = dir;
+  bool turned = false;  // the tail turns once, where the needle drew it out
   for (int j = 0; held + step * j >= 0 && held + step * j < count; ++j) {
     const int n = held + step * j;
     if (j <= through) {
       th.x.col(n) = entry + (exit - entry) * (static_cast<double>(j) / through);
     } else {
       const Vec3 prev = th.x.col(n - step);
-      Vec3 next = prev + opt.node_spacing_mm * tail_dir;
-      if (tail_dir != back_to_portal && SegmentNearBone(*state, prev, next, clearance_mm)) {
-        tail_dir = back_to_portal;  // the tail turns where the needle drew it out
-        next = prev + opt.node_spacing_mm * tail_dir;
-      }
-      th.x.col(n) = next;
+      turned =
+          turned || SegmentNearBone(*state, prev, prev + opt.node_spacing_mm * dir, clearance_mm);
+      th.x.col(n) = prev + opt.node_spacing_mm * (turned ? back_to_portal : dir);
     }
     th.v.col(n).setZero();
   }

@@ -108,6 +108,7 @@ TEST(ScorpionNeedle, PassPlacesTheNodesAsThePaperSays) {
 
 // The slab scene with a bone plate (x in [18, 30], y in [0, 20], z in [11, 15] mm) over the
 // slab, across the line a passed tail is laid along (straight up from the exit, at x = 27).
+// The mesh is written into the folder LoadSlabScenario then writes the scenario into.
 Model SlabUnderBonePlateModel() {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() /
                                     ("arthrosim_suture_slab_plate_" + std::to_string(getpid()));
