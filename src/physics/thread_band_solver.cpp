@@ -1,6 +1,7 @@
 #include "arthrosim/physics/thread_band_solver.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace arthrosim::physics {
@@ -189,6 +190,43 @@ void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x) {
       const int i = a.chain[k] + q;
       const int end = a.chain[k + 1];
       if (i >= end) continue;
+      Vec3 z = Map(x + 3 * i);
+      if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
+      if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
+      Map(x + 3 * i) = Backward3(a.diag[i], z);
+    }
+  }
+}
+
+void SolveBandedSparse(const BandedBlockMatrix& a, const int* rows, int count, double* x) {
+  using Map = Eigen::Map<Vec3>;
+  // Touched runs (at most one per row) and the first row of each that is not zero. Rows before
+  // it would come out as +0 in SolveBanded (zero minus products with zero), as they are here.
+  std::array<int, 4> run{}, first{};
+  int touched = 0;
+  for (int r = 0; r < count; ++r) {
+    const int row = rows[r];
+    const int k =
+        static_cast<int>(std::upper_bound(a.chain.begin(), a.chain.end(), row) - a.chain.begin()) -
+        1;
+    int t = 0;
+    while (t < touched && run[t] != k) ++t;
+    if (t == touched) {
+      run[touched] = k;
+      first[touched++] = row;
+    } else {
+      first[t] = std::min(first[t], row);
+    }
+  }
+  for (int t = 0; t < touched; ++t) {
+    const int begin = a.chain[run[t]], end = a.chain[run[t] + 1];
+    for (int i = first[t]; i < end; ++i) {  // L y = b
+      Vec3 y = Map(x + 3 * i);
+      if (i - begin >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
+      if (i - begin >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
+      Map(x + 3 * i) = Forward3(a.diag[i], y);
+    }
+    for (int i = end - 1; i >= begin; --i) {  // L^T x = y
       Vec3 z = Map(x + 3 * i);
       if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
       if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));

@@ -148,12 +148,15 @@ void SolveWithColumns(System* s) {
   s->cols_v.assign(static_cast<std::size_t>(m) * n3, 0.0);
   for (int c = 0; c < m; ++c) {
     double* v = s->cols_v.data() + static_cast<std::size_t>(c) * n3;
+    int rows[4];
+    int count = 0;
     for (int k = 0; k < 4; ++k) {
       const int node = s->cols_node[4 * c + k];
       if (node < 0 || s->dof[node] < 0) continue;
       Eigen::Map<Vec3>(v + 3 * node) += s->cols_node_w[4 * c + k] * s->cols_dir[c];
+      rows[count++] = node;
     }
-    SolveBanded(s->band, v, v);
+    SolveBandedSparse(s->band, rows, count, v);
   }
   // Capacitance S = I + U^T B^-1 U (symmetric positive definite), dense Cholesky in place.
   s->cap_s.assign(static_cast<std::size_t>(m) * m, 0.0);

@@ -35,4 +35,9 @@ bool FactorBanded(const std::vector<double>& min_pivot, BandedBlockMatrix* a);
 /// Solves A x = b with the factors from FactorBanded; b and x are 3 n long and may alias.
 void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x);
 
+/// SolveBanded in place for a right-hand side x that is zero except in the block rows `rows`
+/// (count <= 4; any order, repeats allowed): runs that hold none of them stay zero and each
+/// other run's forward sweep starts at the first of them. The same bits as SolveBanded(a, x, x).
+void SolveBandedSparse(const BandedBlockMatrix& a, const int* rows, int count, double* x);
+
 }  // namespace arthrosim::physics
