@@ -84,8 +84,8 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
   if (root.Has("solver")) {
     YamlSection s(root.reader(), root.Get("solver"), "solver",
                   {"integrator", "cg_max_iterations", "cg_tolerance", "product", "preconditioner",
-                   "refactor_iterations", "refactor_lag_steps", "divergence_speed",
-                   "divergence_max_substeps"});
+                   "refactor_iterations", "refactor_lag_steps", "refactor_slack_iterations",
+                   "divergence_speed", "divergence_max_substeps"});
     m->solver.integrator = ReadChoice(s, "integrator", kIntegrators, "implicit_euler");
     m->solver.cg_max_iterations =
         static_cast<int>(s.Integer("cg_max_iterations", 100, 1, ranges::kMaxIterations));
@@ -96,6 +96,9 @@ void ReadTimeAndSolver(const YamlSection& root, Model* m) {
         s.Integer("refactor_iterations", m->solver.refactor_iterations, 0, ranges::kMaxIterations));
     m->solver.refactor_lag_steps =
         static_cast<int>(s.Integer("refactor_lag_steps", m->solver.refactor_lag_steps, 1, 1000));
+    m->solver.refactor_slack_iterations =
+        static_cast<int>(s.Integer("refactor_slack_iterations", m->solver.refactor_slack_iterations,
+                                   0, ranges::kMaxIterations));
     m->solver.divergence_speed_mm_s =
         s.Quantity("divergence_speed", ranges::kDivergenceSpeed, m->solver.divergence_speed_mm_s);
     m->solver.divergence_max_substeps = static_cast<int>(s.Integer(

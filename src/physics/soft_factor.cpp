@@ -262,6 +262,7 @@ void SoftSystem::SwitchFactor(double h, State* state) {
   state->factor_switch_step = -1;
   pending_units_ = 0;
   refactored_ = true;
+  new_factor_source_ = true;
 }
 
 void SoftSystem::RequestFactor(State* state) {

@@ -51,6 +51,7 @@ void SoftSystem::BuildBlockJacobi(double h) {
 
 void SoftSystem::BuildPreconditioner(double h, State* state) {
   refactored_ = false;
+  new_factor_source_ = false;
   factor_work_ = false;
   factor_ms_ = 0;
   uncovered_ = 0;
@@ -62,6 +63,7 @@ void SoftSystem::BuildPreconditioner(double h, State* state) {
       active_ready_ = true;
       refactored_ = true;
       factor_work_ = true;
+      new_factor_source_ = state->factor_baseline_cg < 0;  // no solve has used a factor yet
     }
     if (state->factor_switch_step >= 0) {
       if (state->step >= state->factor_switch_step) {
@@ -106,6 +108,7 @@ void SoftSystem::ReplaceFactorNow(double h, State* state) {
   StartFactor(ActiveSources(*state), h, &active_);
   active_.ldlt.FactorSlice(0, 1);
   refactored_ = true;
+  new_factor_source_ = true;
   factor_work_ = true;
 }
 

@@ -38,6 +38,7 @@ void SoftSystem::Build(const Model& model, const State& state) {
   preconditioner_ = model.solver.preconditioner;
   refactor_iterations_ = model.solver.refactor_iterations;
   refactor_lag_ = std::max(1, model.solver.refactor_lag_steps);
+  refactor_slack_ = model.solver.refactor_slack_iterations;
   active_ready_ = false;
   pending_units_ = 0;
   Layout(model, state);

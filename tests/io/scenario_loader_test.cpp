@@ -271,7 +271,7 @@ TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
   const Model m = LoadScenarioFromText(
       Edit("seed: 7",
            "seed: 7\nsolver: {product: matrix_free, preconditioner: block_jacobi, "
-           "refactor_iterations: 0}\n"
+           "refactor_iterations: 0, refactor_slack_iterations: 6}\n"
            "contact: {tissue_tissue_contacts: false, bone_tip_contacts: false}\n"
            "thread_solver: {contact_stiffness: 50, max_strain: 0.02, max_ccd_rounds: 0, "
            "ccd_samples: 4, exclusion_factor: 2, newton_tolerance: 1e-6, max_substep_levels: 3}"),
@@ -279,6 +279,7 @@ TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
   EXPECT_EQ(m.solver.product, SystemProduct::kMatrixFree);
   EXPECT_EQ(m.solver.preconditioner, Preconditioner::kBlockJacobi);
   EXPECT_EQ(m.solver.refactor_iterations, 0);
+  EXPECT_EQ(m.solver.refactor_slack_iterations, 6);
   EXPECT_FALSE(m.contact.tissue_tissue_contacts);
   EXPECT_FALSE(m.contact.bone_tip_contacts);
   EXPECT_TRUE(m.contact.sharp_point_volume_contacts);
@@ -293,6 +294,7 @@ TEST_F(ScenarioLoaderTest, SolverContactToggleAndThreadSolverKeysAreRead) {
   const Model d = LoadScenarioFromText(Valid(), Path());
   EXPECT_EQ(d.solver.preconditioner, Preconditioner::kRestCholesky);
   EXPECT_EQ(d.solver.refactor_iterations, 10);
+  EXPECT_EQ(d.solver.refactor_slack_iterations, 0);
   EXPECT_TRUE(d.contact.tissue_tissue_contacts);
   EXPECT_DOUBLE_EQ(d.thread_solver.max_strain, 0.01);
 }
@@ -305,6 +307,8 @@ TEST_F(ScenarioLoaderTest, BadOptionValuesNameTheField) {
   EXPECT_EQ(LoadError(with("solver: {product: sparse}")).field(), "solver.product");
   EXPECT_EQ(LoadError(with("solver: {refactor_iterations: -1}")).field(),
             "solver.refactor_iterations");
+  EXPECT_EQ(LoadError(with("solver: {refactor_slack_iterations: -2}")).field(),
+            "solver.refactor_slack_iterations");
   EXPECT_EQ(LoadError(with("contact: {bone_tip_contacts: maybe}")).field(),
             "contact.bone_tip_contacts");
   EXPECT_EQ(LoadError(with("thread_solver: {max_strain: 0}")).field(), "thread_solver.max_strain");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "arthrosim/core/parallel.h"
 #include "arthrosim/core/units.h"
@@ -504,6 +505,78 @@ TEST(SoftSystem, RequestedFactorIsUsedExactlyLagStepsLater) {
     EXPECT_LE(st.cg_relative_residual, model.solver.cg_tolerance);
     EXPECT_TRUE(Same(s.soft_bodies[0].x_factor, requested)) << lag;
     EXPECT_EQ(s.factor_switch_step == -1 || s.factor_switch_step > request + lag, true) << lag;
+  }
+}
+
+// Adaptive trigger (SolverOptions::refactor_slack_iterations): the first solve with a new factor
+// sets State::factor_baseline_cg, and a step asks for a factor only when its CG needs more than
+// refactor_iterations and more than that baseline plus the slack. Slack 0 keeps the plain rule
+// (every step above refactor_iterations asks); a slack the drift cannot exceed asks never.
+TEST(SoftSystem, SlackAsksForAFactorOnlyBeyondTheFirstSolveOfTheOneInUse) {
+  auto run = [](int slack, int* asked, int* above_threshold) {
+    Model model = CoarseBeam(0.1, 0.01);
+    model.solver.refactor_iterations = 1;
+    model.solver.refactor_slack_iterations = slack;
+    State s = MakeInitialState(model);
+    SoftSystem sys;
+    sys.Build(model, s);
+    *asked = *above_threshold = 0;
+    for (int k = 0; k < 40; ++k) {
+      const bool pending = s.factor_switch_step >= 0;
+      const std::int32_t baseline = s.factor_baseline_cg;
+      const SoftStepStats st = StepOnce(&sys, model, &s);
+      if (st.refactored) {
+        EXPECT_EQ(s.factor_baseline_cg, st.cg_iterations) << slack << " " << k;
+        continue;  // its baseline is itself
+      }
+      EXPECT_EQ(s.factor_baseline_cg, baseline) << slack << " " << k;
+      if (pending) continue;
+      const bool above = st.cg_iterations > model.solver.refactor_iterations;
+      *above_threshold += above ? 1 : 0;
+      const bool expected = above && (slack == 0 || st.cg_iterations > baseline + slack);
+      EXPECT_EQ(st.anchor_moved, expected)
+          << slack << " " << k << " cg " << st.cg_iterations << " baseline " << baseline;
+      *asked += st.anchor_moved ? 1 : 0;
+    }
+  };
+  int asked0 = 0, above0 = 0;
+  run(0, &asked0, &above0);
+  EXPECT_GE(asked0, 3);
+  EXPECT_EQ(asked0, above0);
+  int asked2 = 0, above2 = 0;
+  run(2, &asked2, &above2);
+  EXPECT_GT(asked2, 0);       // the factor drifts past the slack now and then
+  EXPECT_LT(asked2, above2);  // but not every step above the threshold asks
+  int asked_never = 0, above_never = 0;
+  run(1000, &asked_never, &above_never);
+  EXPECT_EQ(asked_never, 0);
+  EXPECT_GE(above_never, 10);  // the drift it ignores
+  std::printf(
+      "asked for a factor in 40 steps: slack 0: %d, slack 2: %d of %d above the threshold, "
+      "slack 1000: 0 of %d\n",
+      asked0, asked2, above2, above_never);
+}
+
+// The baseline is part of the factor's state: a system built afresh from a copied State (a
+// restore, which factors the source in use again) keeps it and asks at the same steps. Every
+// state of a run, restored into a fresh system and stepped once, gives the run's next state.
+TEST(SoftSystem, SlackTriggerRestoresBitForBit) {
+  Model model = CoarseBeam(0.1, 0.01);
+  model.solver.refactor_iterations = 1;
+  model.solver.refactor_slack_iterations = 2;
+  std::vector<State> run = {MakeInitialState(model)};
+  SoftSystem a;
+  a.Build(model, run.back());
+  for (int k = 0; k < 30; ++k) {
+    run.push_back(run.back());
+    StepOnce(&a, model, &run.back());
+  }
+  for (std::size_t k = 1; k + 1 < run.size(); ++k) {
+    State restored = run[k];
+    SoftSystem b;
+    b.Build(model, restored);
+    StepOnce(&b, model, &restored);
+    EXPECT_TRUE(BitwiseEqual(restored, run[k + 1])) << k;
   }
 }
 

@@ -186,6 +186,9 @@ struct State {
   /// Step at whose start the soft-tissue preconditioner being prepared (SoftBodyState::
   /// x_factor_next ...) replaces the one in use; -1 when none is being prepared.
   std::int64_t factor_switch_step = -1;
+  /// CG iterations of the first solve made with the soft-tissue preconditioner factor in use
+  /// (SolverOptions::refactor_slack_iterations); -1 before any.
+  std::int32_t factor_baseline_cg = -1;
 };
 
 struct Model;

@@ -237,9 +237,10 @@ void VisitFields(S& s, V&& v) {
   v(s.anchors, FieldInfo{"anchors", "", FieldStore::kRecords});
   v(s.script_push, FieldInfo{"script_push", "", FieldStore::kNone});
   v(s.factor_switch_step, FieldInfo{"factor_switch_step", "", FieldStore::kNone});
+  v(s.factor_baseline_cg, FieldInfo{"factor_baseline_cg", "", FieldStore::kNone});
 }
 
-/// The most members any State struct has (State itself: 15).
+/// The most members any State struct has (State itself: 17).
 constexpr std::size_t kMaxStateFields = 32;
 
 /// Addresses of the members of `object` in table order, into `out`; returns how many (0 when

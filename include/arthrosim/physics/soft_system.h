@@ -293,11 +293,15 @@ class SoftSystem final : public SoftStages {
   std::vector<std::int32_t> scratch_nodes_, scratch_row_at_, scratch_cols_;
   std::vector<double> scratch_mass_, scratch_alpha_mass_;
   std::vector<FactorSource> scratch_sources_;
-  bool refactored_ = false;   // this step built or switched to a new factor
+  bool refactored_ = false;  // this step built or switched to a new factor
+  // This step put a factor of a new source into use (a switch, a factor of the step's own mesh,
+  // the first factor of a run): not the rebuild of the one in use after a restore.
+  bool new_factor_source_ = false;
   bool factor_work_ = false;  // this step did factor work (a part or a whole factor)
   double factor_ms_ = 0;
   int refactor_iterations_ = 10;  // from SolverOptions::refactor_iterations
   int refactor_lag_ = 1;          // from SolverOptions::refactor_lag_steps
+  int refactor_slack_ = 0;        // from SolverOptions::refactor_slack_iterations (0: off)
   std::unique_ptr<ArkodeIntegrator> arkode_;
 };
 
