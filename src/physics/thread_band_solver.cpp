@@ -169,37 +169,47 @@ bool FactorBanded(const std::vector<double>& min_pivot, BandedBlockMatrix* a) {
   return true;
 }
 
-void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x) {
-  using CMap = Eigen::Map<const Vec3>;
+namespace {
+
+// Row i of L y = b in a run starting at row `begin`: x(i) from b(i) and the rows above it.
+inline void ForwardRow(const BandedBlockMatrix& a, int begin, int i, const double* b, double* x) {
   using Map = Eigen::Map<Vec3>;
+  Vec3 y = Eigen::Map<const Vec3>(b + 3 * i);
+  if (i - begin >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
+  if (i - begin >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
+  Map(x + 3 * i) = Forward3(a.diag[i], y);
+}
+
+// Row i of L^T x = y in a run ending before row `end`: x(i) from y(i) and the rows below it.
+inline void BackwardRow(const BandedBlockMatrix& a, int end, int i, double* x) {
+  using Map = Eigen::Map<Vec3>;
+  Vec3 z = Map(x + 3 * i);
+  if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
+  if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
+  Map(x + 3 * i) = Backward3(a.diag[i], z);
+}
+
+}  // namespace
+
+void SolveBanded(const BandedBlockMatrix& a, const double* b, double* x) {
   const int nc = static_cast<int>(a.chain.size()) - 1;
   int longest = 0;
   for (int k = 0; k < nc; ++k) longest = std::max(longest, a.chain[k + 1] - a.chain[k]);
   for (int q = 0; q < longest; ++q) {  // L y = b
     for (int k = 0; k < nc; ++k) {
       const int i = a.chain[k] + q;
-      if (i >= a.chain[k + 1]) continue;
-      Vec3 y = CMap(b + 3 * i);
-      if (q >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
-      if (q >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
-      Map(x + 3 * i) = Forward3(a.diag[i], y);
+      if (i < a.chain[k + 1]) ForwardRow(a, a.chain[k], i, b, x);
     }
   }
   for (int q = longest - 1; q >= 0; --q) {  // L^T x = y
     for (int k = 0; k < nc; ++k) {
       const int i = a.chain[k] + q;
-      const int end = a.chain[k + 1];
-      if (i >= end) continue;
-      Vec3 z = Map(x + 3 * i);
-      if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
-      if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
-      Map(x + 3 * i) = Backward3(a.diag[i], z);
+      if (i < a.chain[k + 1]) BackwardRow(a, a.chain[k + 1], i, x);
     }
   }
 }
 
 void SolveBandedSparse(const BandedBlockMatrix& a, const int* rows, int count, double* x) {
-  using Map = Eigen::Map<Vec3>;
   // Touched runs (at most one per row) and the first row of each that is not zero. Rows before
   // it would come out as +0 in SolveBanded (zero minus products with zero), as they are here.
   std::array<int, 4> run{}, first{};
@@ -220,18 +230,8 @@ void SolveBandedSparse(const BandedBlockMatrix& a, const int* rows, int count, d
   }
   for (int t = 0; t < touched; ++t) {
     const int begin = a.chain[run[t]], end = a.chain[run[t] + 1];
-    for (int i = first[t]; i < end; ++i) {  // L y = b
-      Vec3 y = Map(x + 3 * i);
-      if (i - begin >= 1) y -= a.sub1[i - 1] * Map(x + 3 * (i - 1));
-      if (i - begin >= 2) y -= a.sub2[i - 2] * Map(x + 3 * (i - 2));
-      Map(x + 3 * i) = Forward3(a.diag[i], y);
-    }
-    for (int i = end - 1; i >= begin; --i) {  // L^T x = y
-      Vec3 z = Map(x + 3 * i);
-      if (i + 1 < end) z -= a.sub1[i].transpose() * Map(x + 3 * (i + 1));
-      if (i + 2 < end) z -= a.sub2[i].transpose() * Map(x + 3 * (i + 2));
-      Map(x + 3 * i) = Backward3(a.diag[i], z);
-    }
+    for (int i = first[t]; i < end; ++i) ForwardRow(a, begin, i, x, x);
+    for (int i = end - 1; i >= begin; --i) BackwardRow(a, end, i, x);
   }
 }
 
